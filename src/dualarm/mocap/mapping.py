@@ -1,0 +1,53 @@
+"""One call from a `Recording` to human joint angles and the Baxter joint vector."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from dualarm.errors import InputError
+from dualarm.mocap.heading import HeadingEstimate, detect_and_correct
+from dualarm.mocap.joint_angles import (DEFAULT_CALIB_SECONDS, Calibration, JointAngles,
+                                        calibrate, calibration_window, joint_angles)
+from dualarm.mocap.recording import Recording
+from dualarm.mocap.retarget import Retargeted, to_baxter
+
+HEADING_MODES = ("auto", "off")
+
+
+@dataclass(frozen=True)
+class MappingResult:
+    """Everything the mapping stage produces for one recording.
+
+    Attributes:
+        joints: human joint angles (T, 14) rad and residuals (T, 4) rad.
+        robot: Baxter joint vector (T, 14) rad and the clipped fraction per joint.
+        calibration: the sensor mountings and the window they came from.
+        heading: heading-offset estimates (empty when heading correction is off).
+    """
+
+    joints: JointAngles
+    robot: Retargeted
+    calibration: Calibration
+    heading: list[HeadingEstimate]
+
+
+def map_recording(rec: Recording, *, calib_seconds: float = DEFAULT_CALIB_SECONDS,
+                  heading: str = "auto") -> MappingResult:
+    """Calibrate on the first ``calib_seconds``, fix heading offsets, extract and retarget.
+
+    Args:
+        rec: IMU recording of both arms; the person holds the zero pose (standing,
+            arms hanging, facing +x) during the first ``calib_seconds``.
+        calib_seconds: length of the calibration window, s.
+        heading: ``'auto'`` corrects detected heading offsets (see
+            :mod:`dualarm.mocap.heading`), ``'off'`` uses the orientations as given.
+    """
+    if heading not in HEADING_MODES:
+        raise InputError(f"heading must be one of {', '.join(HEADING_MODES)}, got {heading!r}")
+    calibration_window(rec, calib_seconds)  # fail early, before any heavy work
+    estimates: list[HeadingEstimate] = []
+    if heading == "auto":
+        rec, estimates = detect_and_correct(rec, calib_seconds)
+    calib = calibrate(rec, calib_seconds)
+    joints = joint_angles(rec, calib)
+    return MappingResult(joints, to_baxter(joints.q), calib, estimates)
