@@ -127,7 +127,8 @@ def correct_heading(rec: Recording, estimates: list[HeadingEstimate]) -> Recordi
     return Recording(rec.time, quat, dict(rec.acc), dict(rec.gyr), rec.source)
 
 
-def detect_and_correct(rec: Recording, calib_seconds: float) -> tuple[Recording, list[HeadingEstimate]]:
+def detect_and_correct(rec: Recording, calib_seconds: float,
+                       calib_start: float = 0.0) -> tuple[Recording, list[HeadingEstimate]]:
     """Estimate heading offsets and return the corrected recording with the estimates."""
-    estimates = estimate_heading_offsets(rec, calibrate(rec, calib_seconds))
+    estimates = estimate_heading_offsets(rec, calibrate(rec, calib_seconds, calib_start))
     return correct_heading(rec, estimates), estimates

@@ -103,27 +103,38 @@ class JointAngles:
         return self.q[:, 0:7] if side == "left" else self.q[:, 7:14]
 
 
-def calibration_window(rec: Recording, seconds: float) -> np.ndarray:
-    """Indices of the samples in the first ``seconds`` of ``rec``.
+def calibration_window(rec: Recording, seconds: float, start: float = 0.0) -> np.ndarray:
+    """Indices of the samples from ``start`` to ``start + seconds`` after the first sample.
 
     Raises:
-        InputError: if ``seconds`` is not positive or longer than the recording.
+        InputError: if ``seconds`` is not positive, ``start`` is negative, or the
+            window ends after the recording.
     """
     if not np.isfinite(seconds) or seconds <= 0:
         raise InputError(f"calibration window must be a positive number of seconds, got {seconds}",
                          source=rec.source)
-    if seconds > rec.duration + 1e-9:
-        raise InputError(f"calibration window of {seconds:g} s is longer than the recording "
+    if not np.isfinite(start) or start < 0:
+        raise InputError(f"calibration start must be >= 0 s, got {start}", source=rec.source)
+    if start + seconds > rec.duration + 1e-9:
+        what = f"{seconds:g} s" if start == 0 else f"{start:g} + {seconds:g} s"
+        raise InputError(f"calibration window of {what} is longer than the recording "
                          f"({rec.duration:g} s)", source=rec.source)
-    return np.flatnonzero(rec.time - rec.time[0] <= seconds + 1e-9)
+    elapsed = rec.time - rec.time[0]
+    return np.flatnonzero((elapsed >= start - 1e-9) & (elapsed <= start + seconds + 1e-9))
 
 
-def calibrate(rec: Recording, seconds: float = DEFAULT_CALIB_SECONDS) -> Calibration:
-    """Sensor-to-segment mountings from the first ``seconds`` of ``rec`` (Eq. 1).
+def calibrate(rec: Recording, seconds: float = DEFAULT_CALIB_SECONDS, start: float = 0.0) -> Calibration:
+    """Sensor-to-segment mountings from the zero-pose window of ``rec`` (Eq. 1).
+
+    Args:
+        seconds: length of the window, s.
+        start: seconds from the first sample to the start of the window (0: the
+            recording starts in the zero pose; later, e.g., when the orientation
+            filter needs time to converge).
 
     Warns (``UserWarning``) when a sensor turns more than 5 degrees inside the window.
     """
-    idx = calibration_window(rec, seconds)
+    idx = calibration_window(rec, seconds, start)
     mounting, spread = {}, {}
     for arm in ARMS:
         zero = Rotation.from_matrix(ZERO_POSE_SEGMENT_ROTATION[arm])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+import warnings
 
 from dualarm.errors import InputError
 from dualarm.mocap.heading import HeadingEstimate, detect_and_correct
@@ -32,22 +33,25 @@ class MappingResult:
 
 
 def map_recording(rec: Recording, *, calib_seconds: float = DEFAULT_CALIB_SECONDS,
-                  heading: str = "auto") -> MappingResult:
+                  calib_start: float = 0.0, heading: str = "auto") -> MappingResult:
     """Calibrate on the first ``calib_seconds``, fix heading offsets, extract and retarget.
 
     Args:
         rec: IMU recording of both arms; the person holds the zero pose (standing,
-            arms hanging, facing +x) during the first ``calib_seconds``.
+            arms hanging, facing +x) from ``calib_start`` for ``calib_seconds``.
         calib_seconds: length of the calibration window, s.
+        calib_start: start of the calibration window, s after the first sample.
         heading: ``'auto'`` corrects detected heading offsets (see
             :mod:`dualarm.mocap.heading`), ``'off'`` uses the orientations as given.
     """
     if heading not in HEADING_MODES:
         raise InputError(f"heading must be one of {', '.join(HEADING_MODES)}, got {heading!r}")
-    calibration_window(rec, calib_seconds)  # fail early, before any heavy work
+    calibration_window(rec, calib_seconds, calib_start)  # fail early, before any heavy work
     estimates: list[HeadingEstimate] = []
     if heading == "auto":
-        rec, estimates = detect_and_correct(rec, calib_seconds)
-    calib = calibrate(rec, calib_seconds)
+        with warnings.catch_warnings():  # the stillness warning comes once, from the final calibration
+            warnings.simplefilter("ignore")
+            rec, estimates = detect_and_correct(rec, calib_seconds, calib_start)
+    calib = calibrate(rec, calib_seconds, calib_start)
     joints = joint_angles(rec, calib)
     return MappingResult(joints, to_baxter(joints.q), calib, estimates)

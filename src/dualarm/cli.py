@@ -1,0 +1,233 @@
+"""The `dualarm` command: subcommands for each stage of the pipeline."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from dualarm import __version__
+from dualarm.errors import DualarmError
+
+EXAMPLE_RECORDING = Path(__file__).parent / "data" / "example_recording.csv.gz"
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not np.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text!r}")
+    return value
+
+
+def _non_negative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not np.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"must be a number of seconds >= 0, got {text!r}")
+    return value
+
+
+def _summary(result, rec) -> str:
+    """A few human-readable lines about a mapping result."""
+    from dualarm.kinematics import BAXTER_JOINT_NAMES
+    from dualarm.mocap.joint_angles import RESIDUAL_COLUMNS
+
+    lines = [f"{rec.source}: {rec.n_samples} samples, {rec.duration:.2f} s at {rec.rate_hz:.1f} Hz; "
+             f"calibrated on {result.calibration.window_s[0]:.2f}-{result.calibration.window_s[1]:.2f} s "
+             f"(largest sensor turn in the window {np.rad2deg(max(result.calibration.spread.values())):.2f} deg)"]
+    for e in result.heading:
+        if e.detected:
+            lines.append(f"heading offset of {e.sensor}: {np.rad2deg(e.offset_rad):+.1f} deg, corrected "
+                         f"(joint residual RMS {np.rad2deg(e.rms_before_rad):.1f} -> {np.rad2deg(e.rms_after_rad):.1f} deg)")
+    res = np.rad2deg(result.joints.residual)
+    lines.append("joint residual (deg, median / 95th pct): " + ", ".join(
+        f"{name} {np.median(res[:, i]):.1f}/{np.percentile(res[:, i], 95):.1f}"
+        for i, name in enumerate(RESIDUAL_COLUMNS)))
+    clipped = result.robot.clipped_fraction
+    if clipped.any():
+        names = [f"{arm}_{j}" for arm in ("left", "right") for j in BAXTER_JOINT_NAMES]
+        lines.append("clipped to Baxter's limits: " + ", ".join(
+            f"{n} {100 * c:.1f}%" for n, c in zip(names, clipped) if c > 0))
+    else:
+        lines.append("clipped to Baxter's limits: none")
+    return "\n".join(lines)
+
+
+def _map_file(path: Path, args: argparse.Namespace):
+    from dualarm.mocap.io import read_recording
+    from dualarm.mocap.mapping import map_recording
+
+    rec = read_recording(path)
+    return rec, map_recording(rec, calib_seconds=args.calib_seconds, calib_start=args.calib_start,
+                              heading=args.heading)
+
+
+def _write_joint_table(path: Path, time: np.ndarray, q: np.ndarray) -> None:
+    from dualarm.mocap.io import write_table_csv
+    from dualarm.mocap.joint_angles import JOINT_COLUMNS
+
+    write_table_csv(path, ["time", *JOINT_COLUMNS], np.column_stack([time, q]))
+
+
+def cmd_mocap_joints(args: argparse.Namespace) -> int:
+    rec, result = _map_file(args.input, args)
+    q = result.robot.q if args.robot else result.joints.q
+    _write_joint_table(args.output, result.joints.time, q)
+    if args.residuals:
+        from dualarm.mocap.io import write_table_csv
+        from dualarm.mocap.joint_angles import RESIDUAL_COLUMNS
+        write_table_csv(args.residuals, ["time", *RESIDUAL_COLUMNS],
+                        np.column_stack([result.joints.time, result.joints.residual]))
+    if not args.quiet:
+        print(_summary(result, rec), file=sys.stderr)
+        print(f"wrote {args.output} ({'Baxter' if args.robot else 'human'} joint angles, rad)", file=sys.stderr)
+    return 0
+
+
+def _write_figures(out: Path, rec, result, instants_s: list[float] | None) -> list[Path]:
+    from dualarm.kinematics import BAXTER_JOINT_LIMITS
+    from dualarm.mocap import plots
+
+    out.mkdir(parents=True, exist_ok=True)
+    t = result.joints.time
+    if instants_s:
+        idx = [int(np.argmin(np.abs(t - (t[0] + s)))) for s in instants_s]
+    else:  # the zero pose and the two samples farthest from it
+        farthest = np.argsort(np.linalg.norm(result.joints.q, axis=1))
+        idx = sorted({0, int(farthest[-1]), int(farthest[len(farthest) * 3 // 4])})
+    return [
+        plots.plot_joint_angles(t - t[0], result.joints.q, out / "human_joint_angles.png",
+                                title=f"Human joint angles: {Path(rec.source).name}",
+                                residual=result.joints.residual),
+        plots.plot_joint_angles(t - t[0], result.robot.q, out / "baxter_joint_angles.png",
+                                title=f"Baxter joint vector: {Path(rec.source).name}",
+                                limits=BAXTER_JOINT_LIMITS),
+        plots.plot_stick_figures(result.joints.q, result.robot.q, idx, out / "stick_figures.png",
+                                 time=t - t[0]),
+        plots.plot_residuals(t - t[0], result.joints.residual, out / "residuals.png",
+                             heading_estimates=result.heading),
+    ]
+
+
+def cmd_mocap_plot(args: argparse.Namespace) -> int:
+    rec, result = _map_file(args.input, args)
+    for path in _write_figures(args.output, rec, result, args.instants):
+        print(f"wrote {path}", file=sys.stderr)
+    return 0
+
+
+def cmd_mocap_example(args: argparse.Namespace) -> int:
+    from dualarm.mocap.io import write_csv
+    from dualarm.mocap.synthetic import example_recording
+
+    write_csv(example_recording(), args.output)
+    print(f"wrote {args.output}", file=sys.stderr)
+    return 0
+
+
+def cmd_quickstart(args: argparse.Namespace) -> int:
+    """Map the built-in example recording and write tables and figures."""
+    out: Path = args.output
+    out.mkdir(parents=True, exist_ok=True)
+    defaults = argparse.Namespace(calib_seconds=1.0, calib_start=0.0, heading="auto")
+    rec, result = _map_file(EXAMPLE_RECORDING, defaults)
+    _write_joint_table(out / "human_joint_angles.csv", result.joints.time, result.joints.q)
+    _write_joint_table(out / "baxter_joint_angles.csv", result.joints.time, result.robot.q)
+    figures = _write_figures(out, rec, result, None)
+    print(_summary(result, rec))
+    print(f"wrote {out / 'human_joint_angles.csv'}, {out / 'baxter_joint_angles.csv'} and "
+          f"{len(figures)} figures in {out}/")
+    return 0
+
+
+def _comma_floats(text: str) -> list[float]:
+    try:
+        return [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated seconds, got {text!r}") from None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="dualarm",
+        description="Human IMU demonstrations -> joint-angle constraints -> dual-arm reinforcement learning.")
+    parser.add_argument("--version", action="version", version=f"dualarm {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    quick = sub.add_parser("quickstart", help="map the built-in example recording (tables and figures)",
+                           description="Map the built-in example IMU recording to human and Baxter joint "
+                                       "angles, and write the tables and figures.")
+    quick.add_argument("-o", "--output", type=Path, default=Path("out/quickstart"),
+                       help="output directory (default: out/quickstart)")
+    quick.set_defaults(func=cmd_quickstart)
+
+    mocap = sub.add_parser("mocap", help="IMU recordings -> joint angles",
+                           description="IMU recordings of both arms -> human joint angles -> Baxter joints.")
+    msub = mocap.add_subparsers(dest="mocap_command", required=True, metavar="COMMAND")
+
+    def mapping_options(p: argparse.ArgumentParser) -> None:
+        p.add_argument("input", type=Path, metavar="INPUT",
+                       help="recording: .csv (or .csv.gz), OpenSim .sto or MATLAB .mat")
+        p.add_argument("--calib-seconds", type=_positive_float, default=1.0, metavar="S",
+                       help="length of the zero-pose calibration window, s (default: 1.0)")
+        p.add_argument("--calib-start", type=_non_negative_float, default=0.0, metavar="S",
+                       help="start of the calibration window, s after the first sample (default: 0)")
+        p.add_argument("--heading", choices=("auto", "off"), default="auto",
+                       help="correct per-sensor heading offsets detected from the elbow/wrist "
+                            "constraints (default: auto)")
+
+    joints = msub.add_parser("joints", help="write the 14 joint angles of both arms as CSV",
+                             description="Write time,left_q1..left_q7,right_q1..right_q7 (rad), one row "
+                                         "per input sample.")
+    mapping_options(joints)
+    joints.add_argument("-o", "--output", type=Path, required=True, metavar="OUTPUT.csv")
+    joints.add_argument("--robot", action="store_true",
+                        help="write the retargeted Baxter joint vector (clipped to its limits)")
+    joints.add_argument("--residuals", type=Path, metavar="FILE.csv",
+                        help="also write the elbow/wrist residual angles (rad)")
+    joints.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    joints.set_defaults(func=cmd_mocap_joints)
+
+    plot = msub.add_parser("plot", help="joint-angle curves, residuals and stick figures (PNG)",
+                           description="Map a recording and draw its joint angles (degrees), residuals, "
+                                       "and the human and Baxter models side by side.")
+    mapping_options(plot)
+    plot.add_argument("-o", "--output", type=Path, required=True, metavar="DIR")
+    plot.add_argument("--instants", type=_comma_floats, metavar="T1,T2,...",
+                      help="seconds from the start at which to draw stick figures")
+    plot.set_defaults(func=cmd_mocap_plot)
+
+    example = msub.add_parser("example", help="write the built-in example recording",
+                              description="Regenerate the built-in example recording (deterministic).")
+    example.add_argument("-o", "--output", type=Path, required=True, metavar="FILE.csv")
+    example.set_defaults(func=cmd_mocap_example)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point: parse ``argv``, run the subcommand, turn expected errors into one line."""
+    args = build_parser().parse_args(argv)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            warnings.showwarning = lambda message, *_a, **_k: print(f"dualarm: warning: {message}",
+                                                                    file=sys.stderr)
+            return args.func(args)
+    except DualarmError as exc:
+        print(f"dualarm: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"dualarm: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
