@@ -201,6 +201,23 @@ def test_heading_offsets_detected_and_corrected():
     assert not found["left_hand"].detected and found["left_hand"].offset_rad == 0.0
 
 
+@pytest.mark.parametrize("facing_deg", [35.0, 90.0, 180.0, -120.0])
+def test_arm_facing_recovered_from_elbow(facing_deg):
+    """The person faces another heading in one arm's sensor frames (all three sensors turned alike),
+    and the right forearm has its own offset on top."""
+    t, q = example_motion(rate_hz=100.0)
+    facing = np.deg2rad(facing_deg)
+    offsets = {"left_upper_arm": facing, "left_forearm": facing, "left_hand": facing,
+               "right_forearm": 0.5}
+    rec = synthetic_recording(t, q, mountings=random_mountings(np.random.default_rng(11)),
+                              heading_offsets=offsets)
+    assert np.max(np.abs(map_recording(rec, heading="off").joints.q - q)) > 0.3
+    fixed = map_recording(rec, heading="auto")
+    np.testing.assert_allclose(fixed.joints.q, q, atol=1e-5)
+    left_elbow = next(e for e in fixed.heading if e.sensor == "left_forearm")
+    assert left_elbow.detected and abs(np.angle(np.exp(1j * (left_elbow.axis_rad - facing)))) < 1e-6
+
+
 def test_heading_not_corrected_without_evidence():
     """Straight arms turning about the vertical only: a heading offset is not observable."""
     t = np.arange(0, 5, 0.01)
@@ -209,3 +226,18 @@ def test_heading_not_corrected_without_evidence():
     rec = synthetic_recording(t, q, heading_offsets={"left_forearm": 0.8})
     estimates = estimate_heading_offsets(rec, calibrate(rec, 1.0))
     assert not any(e.detected for e in estimates)
+
+
+def test_palms_in_calibration_recovered_as_forearm_roll():
+    """Calibrating with palms towards the thighs (forearm roll q5 = -+80 deg, not 0): the wrist
+    axis fit finds the twist, and the angles come back in the model's convention."""
+    t, q = example_motion(rate_hz=100.0)
+    q = q.copy()
+    q[:, 4] += np.deg2rad(80.0)    # left q5
+    q[:, 11] -= np.deg2rad(80.0)   # right q5 (mirror image)
+    rec = synthetic_recording(t, q, mountings=random_mountings(np.random.default_rng(12)),
+                              heading_offsets={"right_hand": -0.3})
+    assert np.max(np.abs(map_recording(rec, heading="off").joints.residual[:, [1, 3]])) > 0.1
+    fixed = map_recording(rec, heading="auto")
+    np.testing.assert_allclose(fixed.joints.q, q, atol=1e-5)
+    assert np.max(fixed.joints.residual) < 1e-5

@@ -15,24 +15,18 @@ from dualarm.errors import DualarmError
 EXAMPLE_RECORDING = Path(__file__).parent / "data" / "example_recording.csv.gz"
 
 
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not np.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text!r}")
-    return value
-
-
-def _non_negative_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not np.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"must be a number of seconds >= 0, got {text!r}")
-    return value
+def _seconds(allow_zero: bool):
+    """An argparse type: a finite number of seconds, > 0 (or >= 0 with ``allow_zero``)."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not np.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
+            raise argparse.ArgumentTypeError(
+                f"must be a number of seconds {'>=' if allow_zero else '>'} 0, got {text!r}")
+        return value
+    return parse
 
 
 def _summary(result, rec) -> str:
@@ -45,8 +39,11 @@ def _summary(result, rec) -> str:
              f"(largest sensor turn in the window {np.rad2deg(max(result.calibration.spread.values())):.2f} deg)"]
     for e in result.heading:
         if e.detected:
-            lines.append(f"heading offset of {e.sensor}: {np.rad2deg(e.offset_rad):+.1f} deg, corrected "
-                         f"(joint residual RMS {np.rad2deg(e.rms_before_rad):.1f} -> {np.rad2deg(e.rms_after_rad):.1f} deg)")
+            joint = "elbow" if e.sensor.endswith("forearm") else "wrist"
+            axis = "arm facing" if joint == "elbow" else "forearm twist"
+            lines.append(f"{e.sensor}: heading offset {np.rad2deg(e.offset_rad):+.1f} deg, {axis} "
+                         f"{np.rad2deg(e.axis_rad):+.1f} deg, corrected ({joint} hinge violation RMS "
+                         f"{np.rad2deg(e.rms_before_rad):.1f} -> {np.rad2deg(e.rms_after_rad):.1f} deg)")
     res = np.rad2deg(result.joints.residual)
     lines.append("joint residual (deg, median / 95th pct): " + ", ".join(
         f"{name} {np.median(res[:, i]):.1f}/{np.percentile(res[:, i], 95):.1f}"
@@ -100,9 +97,10 @@ def _write_figures(out: Path, rec, result, instants_s: list[float] | None) -> li
     t = result.joints.time
     if instants_s:
         idx = [int(np.argmin(np.abs(t - (t[0] + s)))) for s in instants_s]
-    else:  # the zero pose and the two samples farthest from it
-        farthest = np.argsort(np.linalg.norm(result.joints.q, axis=1))
-        idx = sorted({0, int(farthest[-1]), int(farthest[len(farthest) * 3 // 4])})
+    else:  # the calibration pose and the two samples farthest from it
+        start = int(np.searchsorted(t, result.calibration.window_s[0]))
+        farthest = start + np.argsort(np.linalg.norm(result.joints.q[start:], axis=1))
+        idx = sorted({start, int(farthest[-1]), int(farthest[len(farthest) * 3 // 4])})
     return [
         plots.plot_joint_angles(t - t[0], result.joints.q, out / "human_joint_angles.png",
                                 title=f"Human joint angles: {Path(rec.source).name}",
@@ -176,9 +174,9 @@ def build_parser() -> argparse.ArgumentParser:
     def mapping_options(p: argparse.ArgumentParser) -> None:
         p.add_argument("input", type=Path, metavar="INPUT",
                        help="recording: .csv (or .csv.gz), OpenSim .sto or MATLAB .mat")
-        p.add_argument("--calib-seconds", type=_positive_float, default=1.0, metavar="S",
+        p.add_argument("--calib-seconds", type=_seconds(allow_zero=False), default=1.0, metavar="S",
                        help="length of the zero-pose calibration window, s (default: 1.0)")
-        p.add_argument("--calib-start", type=_non_negative_float, default=0.0, metavar="S",
+        p.add_argument("--calib-start", type=_seconds(allow_zero=True), default=0.0, metavar="S",
                        help="start of the calibration window, s after the first sample (default: 0)")
         p.add_argument("--heading", choices=("auto", "off"), default="auto",
                        help="correct per-sensor heading offsets detected from the elbow/wrist "

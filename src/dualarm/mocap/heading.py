@@ -1,130 +1,218 @@
-"""Detect and correct per-sensor heading offsets from the elbow and wrist kinematic constraints.
+"""Detect and correct heading offsets from the elbow and wrist hinge constraints.
 
 Why it is needed. A sensor fused without magnetometer (6D) reports its orientation
 in a global frame of its own, which shares the vertical with the others but not
-the heading: ``R_G'I = Rz(delta) R_GI``. Calibration in a still pose cannot see
-``delta``: it is absorbed into the mounting, and every later rotation of that
-sensor is then reported about axes turned by ``delta`` about the vertical
-(a flexion read partly as an abduction). No static window can fix this, since a
-static pose fixes only R_G'I(0) = Rz(delta) R^0 R_SI, and delta and R_SI trade off.
+the heading: ``R_G'I = Rz(delta) R_GI``. Two things follow, and no static pose can
+reveal either (in a still pose delta trades off against the unknown mounting):
 
-How it is detected. The elbow and the wrist are 2-DOF joints: the forearm's
-rotation relative to the upper arm is ``Ry(q4) Rx(q5)``. A heading offset between
-the two sensors breaks that structure as soon as the joint flexes, which shows as
-the residual of :func:`dualarm.mocap.joint_angles.two_dof_angles`. The offset of
-the forearm relative to the upper arm is the delta that minimises the mean squared
-elbow residual (a grid search, then a bounded scalar refinement); the hand's, with
-the forearm corrected, the one that minimises the wrist residual (the method of
-Laidig et al., 2017, for hinge joints). The upper arm sensor is the heading
-reference of its arm: its own offset to the body is not observable from the arm
-sensors alone.
+* *relative heading*: the forearm (or hand) sensor's heading differs from the
+  upper arm's by ``delta``, so its later rotations are reported about axes turned
+  by delta about the vertical;
+* *facing*: the person does not face +x in the upper arm sensor's global frame,
+  but some heading ``phi``: flexion is then read partly as abduction. For the
+  arm's three sensors together this is a common heading offset.
 
-An offset is reported as *detected*, and corrected, only when it lowers the RMS
-residual by at least ``MIN_IMPROVEMENT`` and is larger than ``MIN_OFFSET``: on a
-recording where the joint never flexes, delta is not observable and nothing is
-changed.
+How it is detected. The elbow and the wrist are hinges for the purpose of this
+model (``Ry(flexion) Rx(roll)``): the child's long axis stays perpendicular to a
+flexion axis fixed in the parent. Written in the parent segment's frame, the
+flexion axis is ``n = (0, cos phi, -sin phi)`` (phi = 0: the model's y axis), and
+the violation at time t is ``n . v_t``, with ``v_t`` the child's long axis. For a
+given relative heading delta the best phi has a closed form (the eigenvector of
+the smallest eigenvalue of the 2x2 scatter of (v_y, v_z)); delta is found by a
+grid search and a bounded refinement of that smallest eigenvalue (after the
+hinge-joint method of Laidig et al., 2017). Of the two opposite axes the one that
+makes elbow flexion positive is kept; for the wrist, the one within 90 degrees of
+the model's.
+
+* Elbow: delta is the forearm sensor's heading relative to the upper arm's, phi
+  the arm's facing; phi is applied to all three sensors of the arm.
+* Wrist: delta is the hand sensor's heading relative to the (corrected) forearm;
+  phi is where the wrist's flexion axis lay around the forearm in the calibration
+  pose: 0 with the palms forward (the model's q = 0), about +-90 degrees with the
+  palms towards the thighs. It is applied as a *twist* of the forearm and hand
+  mountings about their long axes (:func:`twist_mountings`), so the calibration
+  pose then reads q5 = -phi (forearm roll) instead of 0, and wrist flexion is read
+  as q6 instead of being left in the residual.
+
+A correction is *detected*, and applied, only when it lowers the RMS violation by
+``MIN_IMPROVEMENT`` and turns something by more than ``MIN_OFFSET``: on a
+recording where the joint never flexes, nothing is observable and nothing changes.
+The upper arm sensor stays the heading reference of its arm.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import minimize_scalar
+from scipy.spatial.transform import Rotation
 
 from dualarm.kinematics import ARMS, axis_rotation
-from dualarm.mocap.joint_angles import (Calibration, calibrate, segment_rotations_since_zero,
-                                        two_dof_angles)
+from dualarm.mocap.joint_angles import Calibration, calibrate, segment_rotations_since_zero
 from dualarm.mocap.recording import Recording, sensor_name
 
-#: Smallest reduction of the RMS joint residual (rad) for an offset to count as detected.
+#: Smallest reduction of the RMS hinge violation (rad) for a correction to count as detected.
 MIN_IMPROVEMENT = np.deg2rad(1.0)
-#: Smallest offset (rad) worth correcting.
+#: Smallest heading or facing change (rad) worth applying.
 MIN_OFFSET = np.deg2rad(2.0)
+#: Mean elbow flexion (rad) above which its sign can tell the two opposite axes apart.
+MIN_MEAN_FLEXION = np.deg2rad(5.0)
 #: At most this many evenly spaced samples are used for the estimate.
 MAX_SAMPLES = 20_000
 
 
 @dataclass(frozen=True)
 class HeadingEstimate:
-    """The heading offset of one sensor relative to its parent segment's sensor.
+    """The hinge fit of one joint (elbow or wrist) of one arm.
 
     Attributes:
-        sensor: e.g. ``'right_forearm'``.
-        offset_rad: estimated delta (rad) of the sensor's global frame about the vertical.
-        rms_before_rad: RMS residual of the joint below the sensor without correction.
-        rms_after_rad: RMS residual with ``offset_rad`` removed.
-        detected: True when the offset is large and lowers the residual enough; only
-            detected offsets are corrected.
+        sensor: the child sensor whose heading is estimated, e.g. ``'right_forearm'``.
+        offset_rad: its heading offset delta (rad) about the vertical, relative to the parent.
+        axis_rad: phi (rad): where the flexion axis lies about the parent's long axis.
+            For the elbow it is the arm's facing offset, applied to all its sensors.
+        rms_before_rad: RMS hinge violation (rad) with no correction.
+        rms_after_rad: RMS hinge violation with the correction.
+        detected: True when the correction is applied.
     """
 
     sensor: str
     offset_rad: float
+    axis_rad: float
     rms_before_rad: float
     rms_after_rad: float
     detected: bool
 
 
 def _conjugate_heading(A: np.ndarray, delta: float) -> np.ndarray:
-    """Remove a heading offset from base-frame rotations since zero: ``G A G^T``.
+    """Remove a heading offset ``delta`` from base-frame rotations since zero: ``G A G^T``.
 
-    G_z(-delta) in G is a rotation about the base x axis (base x = -z_G), by +delta.
+    ``Rz(-delta)`` in G is, in the base frame (base x = -z_G), ``Rx(+delta)``.
     """
     G = axis_rotation(0, delta)
     return G @ A @ G.T
 
 
-def _rms_residual(A_parent: np.ndarray, A_child: np.ndarray, delta: float) -> float:
-    rel = np.swapaxes(A_parent, -1, -2) @ _conjugate_heading(A_child, delta)
-    return float(np.sqrt(np.mean(two_dof_angles(rel)[1] ** 2)))
+def _hinge_fit(A_parent: np.ndarray, A_child: np.ndarray, delta: float) -> tuple[float, float]:
+    """Best flexion-axis angle phi and its mean squared violation for a child heading ``delta``."""
+    child_axis = np.einsum("tji,tj->ti", A_parent, _conjugate_heading(A_child, delta)[:, :, 0])
+    vy, vz = child_axis[:, 1], child_axis[:, 2]
+    scatter = np.array([[vy @ vy, -vy @ vz], [-vy @ vz, vz @ vz]]) / len(vy)
+    values, vectors = np.linalg.eigh(scatter)  # n = (cos phi, sin phi) in the (vy, -vz) plane
+    cos_phi, sin_phi = vectors[:, 0]
+    return float(np.arctan2(sin_phi, cos_phi)), float(max(values[0], 0.0))
 
 
-def _best_offset(A_parent: np.ndarray, A_child: np.ndarray) -> float:
+def _violation(A_parent: np.ndarray, A_child: np.ndarray, delta: float, phi: float) -> float:
+    child_axis = np.einsum("tji,tj->ti", A_parent, _conjugate_heading(A_child, delta)[:, :, 0])
+    along_axis = np.cos(phi) * child_axis[:, 1] - np.sin(phi) * child_axis[:, 2]
+    return float(np.sqrt(np.mean(np.arcsin(np.clip(along_axis, -1, 1)) ** 2)))
+
+
+def _best_heading(A_parent: np.ndarray, A_child: np.ndarray) -> float:
     grid = np.linspace(-np.pi, np.pi, 73)[:-1]
-    costs = [_rms_residual(A_parent, A_child, d) for d in grid]
+    costs = [_hinge_fit(A_parent, A_child, d)[1] for d in grid]
     d0 = grid[int(np.argmin(costs))]
     step = grid[1] - grid[0]
-    res = minimize_scalar(lambda d: _rms_residual(A_parent, A_child, d),
-                          bounds=(d0 - step, d0 + step), method="bounded",
-                          options={"xatol": 1e-7})
+    res = minimize_scalar(lambda d: _hinge_fit(A_parent, A_child, d)[1],
+                          bounds=(d0 - step, d0 + step), method="bounded", options={"xatol": 1e-9})
     return float((res.x + np.pi) % (2 * np.pi) - np.pi)
 
 
+def _wrap(x: float) -> float:
+    return float((x + np.pi) % (2 * np.pi) - np.pi)
+
+
+def _fit_joint(A_parent, A_child, *, positive_flexion: bool) -> tuple[float, float, float, float, bool]:
+    """(delta, phi, rms before, rms after, detected) of one hinge."""
+    delta = _best_heading(A_parent, A_child)
+    phi, _ = _hinge_fit(A_parent, A_child, delta)
+    flexed = False
+    if positive_flexion:
+        # Flexion a = atan2(-z, x) of the child axis in the corrected parent frame: keep a > 0 on average.
+        rel = _conjugate_heading(np.swapaxes(A_parent, -1, -2) @ _conjugate_heading(A_child, delta), phi)
+        mean_flexion = float(np.mean(np.arctan2(-rel[:, 2, 0], rel[:, 0, 0])))
+        flexed = abs(mean_flexion) > MIN_MEAN_FLEXION
+        if mean_flexion < 0:
+            phi += np.pi
+    elif abs(_wrap(phi)) > np.pi / 2:
+        phi += np.pi
+    phi = _wrap(phi)
+    before = _violation(A_parent, A_child, 0.0, 0.0)
+    after = _violation(A_parent, A_child, delta, phi)
+    turned = max(abs(delta), abs(phi))
+    detected = turned > MIN_OFFSET and before - after > MIN_IMPROVEMENT
+    if flexed and abs(phi) > np.pi / 2:  # elbow read backwards (flexion < 0): always worth fixing
+        detected = True
+    return delta, phi, before, after, bool(detected)
+
+
 def estimate_heading_offsets(rec: Recording, calib: Calibration) -> list[HeadingEstimate]:
-    """Estimate the heading offset of each forearm and hand sensor (see module doc).
+    """Hinge fits of the elbow and the wrist of both arms (see the module docstring).
 
     Returns:
-        Four estimates, left forearm, left hand, right forearm, right hand.
+        Four estimates: left elbow (sensor left_forearm), left wrist (left_hand),
+        right elbow, right wrist.
     """
     step = max(1, rec.n_samples // MAX_SAMPLES)
     sub = Recording(rec.time[::step], {s: q[::step] for s, q in rec.quat.items()}, source=rec.source)
     A_all = segment_rotations_since_zero(sub, calib)
     out = []
     for arm in ARMS:
-        A = A_all[arm][:, ::step].copy()
-        for child in (1, 2):
-            parent = child - 1
-            delta = _best_offset(A[parent], A[child])
-            before = _rms_residual(A[parent], A[child], 0.0)
-            after = _rms_residual(A[parent], A[child], delta)
-            detected = abs(delta) > MIN_OFFSET and before - after > MIN_IMPROVEMENT
-            if detected:  # the next joint down sees the corrected segment
-                A[child] = _conjugate_heading(A[child], delta)
-            name = sensor_name(arm, ("upper_arm", "forearm", "hand")[child])
-            out.append(HeadingEstimate(name, delta if detected else 0.0, before,
-                                       after if detected else before, bool(detected)))
+        A = A_all[arm].copy()
+        # Elbow: forearm heading, then the arm's facing (all three segments).
+        delta, phi, before, after, detected = _fit_joint(A[0], A[1], positive_flexion=True)
+        if detected:
+            A[1] = _conjugate_heading(A[1], delta)
+            A = _conjugate_heading(A, phi)
+        out.append(HeadingEstimate(sensor_name(arm, "forearm"), delta if detected else 0.0,
+                                   phi if detected else 0.0, before, after if detected else before, detected))
+        # Wrist: hand heading relative to the corrected forearm, and the forearm's twist.
+        delta, phi, before, after, detected = _fit_joint(A[1], A[2], positive_flexion=False)
+        out.append(HeadingEstimate(sensor_name(arm, "hand"), delta if detected else 0.0,
+                                   phi if detected else 0.0, before, after if detected else before, detected))
     return out
 
 
+def _turn_about_vertical(quat: np.ndarray, angle: float) -> np.ndarray:
+    """(T, 4) quaternions (w, x, y, z) left-multiplied by Rz(angle)."""
+    c, s = np.cos(angle / 2), np.sin(angle / 2)
+    w, x, y, z = np.asarray(quat).T
+    return np.stack([c * w - s * z, c * x - s * y, c * y + s * x, c * z + s * w], axis=1)
+
+
 def correct_heading(rec: Recording, estimates: list[HeadingEstimate]) -> Recording:
-    """A copy of ``rec`` with each detected offset removed: ``R_GI = Rz(-delta) R_G'I``."""
+    """A copy of ``rec`` with detected offsets removed: ``R_GI = Rz(-delta) R_G'I``,
+    and each arm's facing ``Rz(-phi)`` applied to its three sensors."""
     quat = dict(rec.quat)
     for e in estimates:
-        if e.detected:  # left product with the quaternion of Rz(-delta) = (cos(d/2), 0, 0, -sin(d/2))
-            c, s = np.cos(e.offset_rad / 2), -np.sin(e.offset_rad / 2)
-            w, x, y, z = np.asarray(quat[e.sensor]).T
-            quat[e.sensor] = np.stack([c * w - s * z, c * x - s * y, c * y + s * x, c * z + s * w], axis=1)
+        if not e.detected:
+            continue
+        quat[e.sensor] = _turn_about_vertical(quat[e.sensor], -e.offset_rad)
+        if e.sensor.endswith("_forearm") and e.axis_rad:  # the arm's facing: all three sensors
+            arm = e.sensor.split("_")[0]
+            for seg in ("upper_arm", "forearm", "hand"):
+                s = sensor_name(arm, seg)
+                quat[s] = _turn_about_vertical(quat[s], -e.axis_rad)
     return Recording(rec.time, quat, dict(rec.acc), dict(rec.gyr), rec.source)
+
+
+def twist_mountings(calib: Calibration, estimates: list[HeadingEstimate]) -> Calibration:
+    """Apply each detected wrist-axis angle phi as a twist of the forearm and hand mountings.
+
+    ``R_SI' = Rx_S(phi) R_SI`` (x_S: the segment's long axis), so that in the base
+    frame the rotations since zero become ``A Rx(-phi)`` and the wrist's flexion
+    axis is the model's.
+    """
+    mounting = dict(calib.mounting)
+    for e in estimates:
+        if e.detected and e.sensor.endswith("_hand") and e.axis_rad:
+            arm = e.sensor.split("_")[0]
+            twist = Rotation.from_euler("x", e.axis_rad)
+            for seg in ("forearm", "hand"):
+                s = sensor_name(arm, seg)
+                mounting[s] = (twist * Rotation.from_quat(mounting[s], scalar_first=True)).as_quat(scalar_first=True)
+    return replace(calib, mounting=mounting)
 
 
 def detect_and_correct(rec: Recording, calib_seconds: float,

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import warnings
 
 from dualarm.errors import InputError
-from dualarm.mocap.heading import HeadingEstimate, detect_and_correct
+from dualarm.mocap.heading import HeadingEstimate, detect_and_correct, twist_mountings
 from dualarm.mocap.joint_angles import (DEFAULT_CALIB_SECONDS, Calibration, JointAngles,
                                         calibrate, calibration_window, joint_angles)
 from dualarm.mocap.recording import Recording
@@ -41,8 +41,9 @@ def map_recording(rec: Recording, *, calib_seconds: float = DEFAULT_CALIB_SECOND
             arms hanging, facing +x) from ``calib_start`` for ``calib_seconds``.
         calib_seconds: length of the calibration window, s.
         calib_start: start of the calibration window, s after the first sample.
-        heading: ``'auto'`` corrects detected heading offsets (see
-            :mod:`dualarm.mocap.heading`), ``'off'`` uses the orientations as given.
+        heading: ``'auto'`` corrects the sensor heading offsets, the arm's facing and
+            the forearm twist found from the elbow and wrist hinge constraints (see
+            :mod:`dualarm.mocap.heading`); ``'off'`` uses the orientations as given.
     """
     if heading not in HEADING_MODES:
         raise InputError(f"heading must be one of {', '.join(HEADING_MODES)}, got {heading!r}")
@@ -52,6 +53,6 @@ def map_recording(rec: Recording, *, calib_seconds: float = DEFAULT_CALIB_SECOND
         with warnings.catch_warnings():  # the stillness warning comes once, from the final calibration
             warnings.simplefilter("ignore")
             rec, estimates = detect_and_correct(rec, calib_seconds, calib_start)
-    calib = calibrate(rec, calib_seconds, calib_start)
+    calib = twist_mountings(calibrate(rec, calib_seconds, calib_start), estimates)
     joints = joint_angles(rec, calib)
     return MappingResult(joints, to_baxter(joints.q), calib, estimates)

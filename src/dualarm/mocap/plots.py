@@ -307,11 +307,13 @@ def plot_stick_figures(q_human, q_robot, instants: Sequence[int], path: str | os
 # --------------------------------------------------------------------------- residuals
 
 def _heading_text(estimates) -> str:
-    lines = ["heading offsets (deg)", "sensor          offset  rms before→after"]
+    lines = ["hinge fits (deg): child sensor heading offset; flexion-axis angle phi",
+             "(elbow: the arm's facing; wrist: the forearm twist); RMS hinge violation",
+             "sensor           heading     phi   rms before→after"]
     for e in estimates:
         mark = "" if e.detected else "  (not detected)"
-        lines.append(f"{e.sensor:<15} {np.rad2deg(e.offset_rad):+6.1f}  "
-                     f"{np.rad2deg(e.rms_before_rad):5.1f} → {np.rad2deg(e.rms_after_rad):5.1f}{mark}")
+        lines.append(f"{e.sensor:<15} {np.rad2deg(e.offset_rad):+8.1f} {np.rad2deg(getattr(e, 'axis_rad', 0.0)):+7.1f}"
+                     f"   {np.rad2deg(e.rms_before_rad):5.1f} → {np.rad2deg(e.rms_after_rad):5.1f}{mark}")
     return "\n".join(lines)
 
 

@@ -1,0 +1,188 @@
+"""The `dualarm` command as a user types it: outputs, headers, and one-line errors."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import scipy.io
+
+from dualarm.cli import EXAMPLE_RECORDING, main
+from dualarm.kinematics import BAXTER_JOINT_LIMITS
+from dualarm.mocap.io import read_recording, write_csv, write_sto
+from dualarm.mocap.joint_angles import JOINT_COLUMNS
+from dualarm.mocap.recording import SENSORS
+from dualarm.mocap.synthetic import example_motion, example_recording, random_mountings, synthetic_recording
+
+HEADER = "time," + ",".join(f"{arm}_q{k}" for arm in ("left", "right") for k in range(1, 8))
+
+
+@pytest.fixture
+def motion():
+    t, q = example_motion(duration_s=8.0, rate_hz=50.0, calib_s=1.5)
+    return t, q, synthetic_recording(t, q, mountings=random_mountings(np.random.default_rng(3)))
+
+
+@pytest.fixture
+def recording_csv(tmp_path, motion):
+    path = tmp_path / "rec.csv"
+    write_csv(motion[2], path)
+    return path
+
+
+def _table(path):
+    lines = path.read_text().splitlines()
+    return lines[0], np.loadtxt(path, delimiter=",", skiprows=1)
+
+
+def test_help_on_every_command(capsys):
+    for argv in (["--help"], ["mocap", "--help"], ["mocap", "joints", "--help"], ["mocap", "plot", "--help"],
+                 ["mocap", "example", "--help"], ["quickstart", "--help"]):
+        with pytest.raises(SystemExit) as exit_info:
+            main(argv)
+        assert exit_info.value.code == 0
+        assert "usage: dualarm" in capsys.readouterr().out
+
+
+def test_joints_writes_human_angles(tmp_path, motion, recording_csv):
+    t, q, _ = motion
+    out = tmp_path / "joints.csv"
+    assert main(["mocap", "joints", str(recording_csv), "-o", str(out)]) == 0
+    header, data = _table(out)
+    assert header == HEADER and header.split(",")[1:] == list(JOINT_COLUMNS)
+    assert data.shape == (len(t), 15)
+    np.testing.assert_array_equal(data[:, 0], t)
+    np.testing.assert_allclose(data[:, 1:], q, atol=1e-6)
+    assert np.max(np.abs(data[t <= 1.0, 1:])) < 1e-6  # still in the calibration window
+
+
+def test_joints_robot_is_clipped_baxter_vector(tmp_path, motion, recording_csv):
+    out = tmp_path / "robot.csv"
+    assert main(["mocap", "joints", str(recording_csv), "-o", str(out), "--robot", "-q"]) == 0
+    header, data = _table(out)
+    assert header == HEADER
+    limits = np.tile(BAXTER_JOINT_LIMITS, (2, 1))
+    assert np.all(data[:, 1:] >= limits[:, 0]) and np.all(data[:, 1:] <= limits[:, 1])
+    np.testing.assert_allclose(data[:, 1:], np.clip(motion[1], limits[:, 0], limits[:, 1]), atol=1e-6)
+
+
+def test_calib_seconds_option(tmp_path, recording_csv):
+    out = tmp_path / "joints.csv"
+    assert main(["mocap", "joints", str(recording_csv), "-o", str(out), "--calib-seconds", "0.5", "-q"]) == 0
+    assert _table(out)[1].shape[1] == 15
+
+
+def test_sto_and_mat_inputs(tmp_path, motion):
+    t, q, rec = motion
+    sto = tmp_path / "rec.sto"
+    write_sto(rec, sto)
+    mat = tmp_path / "rec.mat"
+    scipy.io.savemat(mat, {"t": t, **{s: {"quat": rec.quat[s], "acc": np.zeros((len(t), 3)),
+                                          "gyr": np.zeros((len(t), 3))} for s in SENSORS}})
+    for path in (sto, mat):
+        out = tmp_path / f"{path.suffix[1:]}.csv"
+        assert main(["mocap", "joints", str(path), "-o", str(out), "-q"]) == 0
+        np.testing.assert_allclose(_table(out)[1][:, 1:], q, atol=1e-6)
+
+
+def _corrupt(path, transform):
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(transform(lines)) + "\n")
+    return path
+
+
+def _drop_column(name):
+    def transform(lines):
+        cells = [line.split(",") for line in lines]
+        k = cells[0].index(name)
+        return [",".join(c[:k] + c[k + 1:]) for c in cells]
+    return transform
+
+
+def _set_cell(row, name, value):
+    def transform(lines):
+        k = lines[0].split(",").index(name)
+        cells = lines[row].split(",")
+        cells[k] = value
+        lines[row] = ",".join(cells)
+        return lines
+    return transform
+
+
+def _zero_quaternion(row, sensor):
+    def transform(lines):
+        for part in "wxyz":
+            lines = _set_cell(row, f"{sensor}_q{part}", "0")(lines)
+        return lines
+    return transform
+
+
+BAD_INPUTS = {
+    "missing column": (_drop_column("right_hand_qy"), ["right_hand_qy"]),
+    "NaN quaternion": (_set_cell(5, "left_forearm_qx", "nan"), ["row 5", "left_forearm_qx"]),
+    "zero quaternion": (_zero_quaternion(7, "right_upper_arm"), ["row 7", "right_upper_arm", "zero"]),
+    "time not increasing": (_set_cell(10, "time", "0.05"), ["row 10", "time", "increasing"]),
+    "empty file": (lambda lines: [], ["empty"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
+def test_bad_input_one_line_no_output(tmp_path, recording_csv, capfd, case):
+    transform, words = BAD_INPUTS[case]
+    _corrupt(recording_csv, transform)
+    out = tmp_path / "joints.csv"
+    code = main(["mocap", "joints", str(recording_csv), "-o", str(out)])
+    err = capfd.readouterr().err.strip().splitlines()
+    assert code != 0 and not out.exists()
+    assert len(err) == 1 and str(recording_csv) in err[0], err
+    for word in words:
+        assert word.lower() in err[0].lower(), (word, err[0])
+    assert "Traceback" not in err[0]
+
+
+def test_calibration_longer_than_recording(tmp_path, recording_csv, capfd):
+    out = tmp_path / "joints.csv"
+    assert main(["mocap", "joints", str(recording_csv), "-o", str(out), "--calib-seconds", "60"]) == 2
+    err = capfd.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "longer than the recording" in err[0] and str(recording_csv) in err[0]
+    assert not out.exists()
+
+
+def test_unknown_extension_and_missing_file(tmp_path, capfd):
+    weird = tmp_path / "rec.xlsx"
+    weird.write_text("time\n0\n")
+    for path in (weird, tmp_path / "nope.csv"):
+        out = tmp_path / "joints.csv"
+        assert main(["mocap", "joints", str(path), "-o", str(out)]) == 2
+        err = capfd.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and str(path) in err[0] and not out.exists()
+
+
+def test_installed_entry_point_reports_errors_without_traceback(tmp_path):
+    """The real `dualarm` process: exit status 2 and a single stderr line."""
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,foo\n0,1\n")
+    proc = subprocess.run([sys.executable, "-m", "dualarm.cli", "mocap", "joints", str(bad), "-o",
+                           str(tmp_path / "o.csv")], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr and "left_upper_arm" in proc.stderr
+
+
+def test_shipped_example_is_the_generator_output():
+    shipped, regenerated = read_recording(EXAMPLE_RECORDING), example_recording()
+    np.testing.assert_array_equal(shipped.time, regenerated.time)
+    for s in SENSORS:
+        np.testing.assert_array_equal(shipped.quat[s], regenerated.quat[s])
+
+
+def test_quickstart_writes_tables_and_figures(tmp_path, capsys):
+    assert main(["quickstart", "-o", str(tmp_path)]) == 0
+    names = {p.name for p in tmp_path.iterdir()}
+    assert {"human_joint_angles.csv", "baxter_joint_angles.csv", "stick_figures.png",
+            "human_joint_angles.png", "baxter_joint_angles.png", "residuals.png"} <= names
+    text = capsys.readouterr().out
+    assert "right_forearm: heading offset +25.0 deg" in text or "right_forearm: heading offset +25.1 deg" in text
+    # The example's motion comes back through noise and heading offsets to within a degree.
+    _, q = example_motion()
+    got = np.loadtxt(tmp_path / "human_joint_angles.csv", delimiter=",", skiprows=1)[:, 1:]
+    assert np.degrees(np.max(np.abs(got - q))) < 1.5
