@@ -59,7 +59,7 @@ MIN_OFFSET = np.deg2rad(2.0)
 #: Mean elbow flexion (rad) above which its sign can tell the two opposite axes apart.
 MIN_MEAN_FLEXION = np.deg2rad(5.0)
 #: At most this many evenly spaced samples are used for the estimate.
-MAX_SAMPLES = 20_000
+MAX_SAMPLES = 10_000
 
 
 @dataclass(frozen=True)
@@ -93,9 +93,17 @@ def _conjugate_heading(A: np.ndarray, delta: float) -> np.ndarray:
     return G @ A @ G.T
 
 
+def _child_axis(A_parent: np.ndarray, A_child: np.ndarray, delta: float) -> np.ndarray:
+    """(T, 3) child's long axis in the parent frame, child heading ``delta`` removed.
+
+    ``A_p^T (G A_c G^T) e_x = A_p^T G (A_c e_x)`` since G turns about x: vectors only.
+    """
+    return np.einsum("tji,tj->ti", A_parent, A_child[:, :, 0] @ axis_rotation(0, delta).T)
+
+
 def _hinge_fit(A_parent: np.ndarray, A_child: np.ndarray, delta: float) -> tuple[float, float]:
     """Best flexion-axis angle phi and its mean squared violation for a child heading ``delta``."""
-    child_axis = np.einsum("tji,tj->ti", A_parent, _conjugate_heading(A_child, delta)[:, :, 0])
+    child_axis = _child_axis(A_parent, A_child, delta)
     vy, vz = child_axis[:, 1], child_axis[:, 2]
     scatter = np.array([[vy @ vy, -vy @ vz], [-vy @ vz, vz @ vz]]) / len(vy)
     values, vectors = np.linalg.eigh(scatter)  # n = (cos phi, sin phi) in the (vy, -vz) plane
@@ -104,7 +112,7 @@ def _hinge_fit(A_parent: np.ndarray, A_child: np.ndarray, delta: float) -> tuple
 
 
 def _violation(A_parent: np.ndarray, A_child: np.ndarray, delta: float, phi: float) -> float:
-    child_axis = np.einsum("tji,tj->ti", A_parent, _conjugate_heading(A_child, delta)[:, :, 0])
+    child_axis = _child_axis(A_parent, A_child, delta)
     along_axis = np.cos(phi) * child_axis[:, 1] - np.sin(phi) * child_axis[:, 2]
     return float(np.sqrt(np.mean(np.arcsin(np.clip(along_axis, -1, 1)) ** 2)))
 
