@@ -186,3 +186,20 @@ def test_quickstart_writes_tables_and_figures(tmp_path, capsys):
     _, q = example_motion()
     got = np.loadtxt(tmp_path / "human_joint_angles.csv", delimiter=",", skiprows=1)[:, 1:]
     assert np.degrees(np.max(np.abs(got - q))) < 1.5
+
+
+def test_sensor_map_option(tmp_path, motion):
+    t, q, rec = motion
+    renamed = {s: "IMU" + str(i) for i, s in enumerate(SENSORS)}
+    path = tmp_path / "renamed.csv"
+    write_csv(rec, path)
+    lines = path.read_text().splitlines()
+    header = lines[0]
+    for s, new in renamed.items():
+        header = header.replace(s + "_", new + "_")
+    path.write_text("\n".join([header] + lines[1:]) + "\n")
+    out = tmp_path / "joints.csv"
+    assert main(["mocap", "joints", str(path), "-o", str(out), "-q"]) == 2  # names unknown
+    mapping = ",".join(f"{new}={s}" for s, new in renamed.items())
+    assert main(["mocap", "joints", str(path), "-o", str(out), "-q", "--sensor-map", mapping]) == 0
+    np.testing.assert_allclose(_table(out)[1][:, 1:], q, atol=1e-6)

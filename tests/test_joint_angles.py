@@ -103,19 +103,30 @@ def _two_sample_recording(quats_zero, quats_now):
     return Recording(np.array([0.0, 1.0]), quat)
 
 
-@settings(max_examples=40, deadline=None)
-@given(q_target=joint_vectors(), seed=st.integers(0, 10**9))
-def test_locality_hand_only_changes_wrist(q_target, seed):
+def _angles_before_after_turning(q_target, seed, segments):
+    """Joint angles at ``q_target``, then with ``segments`` of each arm turned together by one
+    random rotation (about the joint above them); returns the two (14,) angle vectors."""
     rng = np.random.default_rng(seed)
     mountings = random_mountings(rng)
     zero = sensor_quaternions(np.zeros((1, 14)), mountings)
     before = sensor_quaternions(q_target[None], mountings)
     after = dict(before)
-    for hand in ("left_hand", "right_hand"):  # any rotation of the hand alone, about the wrist
+    for arm in ("left", "right"):
         W = Rotation.random(random_state=rng)
-        after[hand] = (W * Rotation.from_quat(before[hand], scalar_first=True)).as_quat(scalar_first=True)
-    qa = joint_angles(r := _two_sample_recording(zero, before), calibrate(r, 0.5)).q[1]
-    qb = joint_angles(r := _two_sample_recording(zero, after), calibrate(r, 0.5)).q[1]
+        for seg in segments:
+            s = f"{arm}_{seg}"
+            after[s] = (W * Rotation.from_quat(before[s], scalar_first=True)).as_quat(scalar_first=True)
+    angles = []
+    for quats in (before, after):
+        rec = _two_sample_recording(zero, quats)
+        angles.append(joint_angles(rec, calibrate(rec, 0.5)).q[1])
+    return angles
+
+
+@settings(max_examples=40, deadline=None)
+@given(q_target=joint_vectors(), seed=st.integers(0, 10**9))
+def test_locality_hand_only_changes_wrist(q_target, seed):
+    qa, qb = _angles_before_after_turning(q_target, seed, ("hand",))
     for arm in (slice(0, 7), slice(7, 14)):
         np.testing.assert_allclose(qb[arm][:5], qa[arm][:5], atol=1e-7)
 
@@ -123,20 +134,10 @@ def test_locality_hand_only_changes_wrist(q_target, seed):
 @settings(max_examples=40, deadline=None)
 @given(q_target=joint_vectors(), seed=st.integers(0, 10**9))
 def test_locality_rigid_forearm_and_hand_only_changes_elbow(q_target, seed):
-    rng = np.random.default_rng(seed)
-    mountings = random_mountings(rng)
-    zero = sensor_quaternions(np.zeros((1, 14)), mountings)
-    before = sensor_quaternions(q_target[None], mountings)
-    after = dict(before)
-    for arm in ("left", "right"):  # forearm and hand turn together about the elbow
-        W = Rotation.random(random_state=rng)
-        for seg in ("forearm", "hand"):
-            s = f"{arm}_{seg}"
-            after[s] = (W * Rotation.from_quat(before[s], scalar_first=True)).as_quat(scalar_first=True)
-    qa = joint_angles(r := _two_sample_recording(zero, before), calibrate(r, 0.5)).q[1]
-    qb = joint_angles(r := _two_sample_recording(zero, after), calibrate(r, 0.5)).q[1]
+    qa, qb = _angles_before_after_turning(q_target, seed, ("forearm", "hand"))
     for arm in (slice(0, 7), slice(7, 14)):
         np.testing.assert_allclose(qb[arm][[0, 1, 2, 5, 6]], qa[arm][[0, 1, 2, 5, 6]], atol=1e-7)
+        assert np.max(np.abs(qb[arm][[3, 4]] - qa[arm][[3, 4]])) > 1e-6  # the elbow did move
 
 
 def test_calibration_window_gives_zero():

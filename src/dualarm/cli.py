@@ -62,7 +62,7 @@ def _map_file(path: Path, args: argparse.Namespace):
     from dualarm.mocap.io import read_recording
     from dualarm.mocap.mapping import map_recording
 
-    rec = read_recording(path)
+    rec = read_recording(path, sensor_map=getattr(args, "sensor_map", None))
     return rec, map_recording(rec, calib_seconds=args.calib_seconds, calib_start=args.calib_start,
                               heading=args.heading)
 
@@ -146,6 +146,13 @@ def cmd_quickstart(args: argparse.Namespace) -> int:
     return 0
 
 
+def _name_map(text: str) -> dict[str, str]:
+    pairs = [item.split("=", 1) for item in text.split(",") if item.strip()]
+    if not pairs or any(len(p) != 2 or not p[0].strip() or not p[1].strip() for p in pairs):
+        raise argparse.ArgumentTypeError(f"expected NAME=SENSOR pairs separated by commas, got {text!r}")
+    return {name.strip(): sensor.strip() for name, sensor in pairs}
+
+
 def _comma_floats(text: str) -> list[float]:
     try:
         return [float(x) for x in text.split(",") if x.strip()]
@@ -178,6 +185,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="length of the zero-pose calibration window, s (default: 1.0)")
         p.add_argument("--calib-start", type=_seconds(allow_zero=True), default=0.0, metavar="S",
                        help="start of the calibration window, s after the first sample (default: 0)")
+        p.add_argument("--sensor-map", type=_name_map, metavar="NAME=SENSOR,...",
+                       help="the file's sensor (or column prefix) names for ours, e.g. "
+                            "'RUA=right_upper_arm,RFA=right_forearm,...'")
         p.add_argument("--heading", choices=("auto", "off"), default="auto",
                        help="correct per-sensor heading offsets detected from the elbow/wrist "
                             "constraints (default: auto)")
