@@ -91,6 +91,11 @@ BAXTER_DH_TABLE: tuple[DHRow, ...] = (
 )
 
 
+def wrap_angle(angle):
+    """Angles (rad, scalar or array) brought into [-pi, pi): the same rotation about one axis."""
+    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
+
+
 def _homogeneous(rotation: np.ndarray, translation) -> np.ndarray:
     T = np.eye(4)
     T[:3, :3] = rotation

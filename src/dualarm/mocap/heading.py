@@ -48,7 +48,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.spatial.transform import Rotation
 
-from dualarm.kinematics import ARMS, axis_rotation
+from dualarm.kinematics import ARMS, axis_rotation, wrap_angle
 from dualarm.mocap.joint_angles import Calibration, calibrate, segment_rotations_since_zero
 from dualarm.mocap.recording import Recording, sensor_name
 
@@ -124,11 +124,7 @@ def _best_heading(A_parent: np.ndarray, A_child: np.ndarray) -> float:
     step = grid[1] - grid[0]
     res = minimize_scalar(lambda d: _hinge_fit(A_parent, A_child, d)[1],
                           bounds=(d0 - step, d0 + step), method="bounded", options={"xatol": 1e-9})
-    return float((res.x + np.pi) % (2 * np.pi) - np.pi)
-
-
-def _wrap(x: float) -> float:
-    return float((x + np.pi) % (2 * np.pi) - np.pi)
+    return float(wrap_angle(res.x))
 
 
 def _fit_joint(A_parent, A_child, *, positive_flexion: bool) -> tuple[float, float, float, float, bool]:
@@ -143,9 +139,9 @@ def _fit_joint(A_parent, A_child, *, positive_flexion: bool) -> tuple[float, flo
         flexed = abs(mean_flexion) > MIN_MEAN_FLEXION
         if mean_flexion < 0:
             phi += np.pi
-    elif abs(_wrap(phi)) > np.pi / 2:
+    elif abs(wrap_angle(phi)) > np.pi / 2:
         phi += np.pi
-    phi = _wrap(phi)
+    phi = float(wrap_angle(phi))
     before = _violation(A_parent, A_child, 0.0, 0.0)
     after = _violation(A_parent, A_child, delta, phi)
     turned = max(abs(delta), abs(phi))

@@ -46,7 +46,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from dualarm.errors import InputError
-from dualarm.kinematics import ARMS, HUMAN_BASE_ROTATION
+from dualarm.kinematics import ARMS, HUMAN_BASE_ROTATION, wrap_angle
 from dualarm.mocap.recording import SEGMENTS, Recording, sensor_name
 
 #: The paper's R^0: right-arm segment frames in G at the zero pose.
@@ -174,10 +174,6 @@ def segment_rotations_since_zero(rec: Recording, calib: Calibration) -> dict[str
     return out
 
 
-def _wrap(x: np.ndarray) -> np.ndarray:
-    return (x + np.pi) % (2 * np.pi) - np.pi
-
-
 def shoulder_angles(A_upper: np.ndarray) -> np.ndarray:
     """Invert ``A_U = Rz(q1) Ry(q2) Rx(q3)`` over time, continuously.
 
@@ -203,9 +199,9 @@ def shoulder_angles(A_upper: np.ndarray) -> np.ndarray:
         q3 = np.where(singular, np.where(up, combo + q1, combo - q1), q3)
     # Follow the second solution (q1+pi, pi-q2, q3+pi) where that is the smaller step.
     if len(q1) > 1:
-        same = np.abs(_wrap(np.diff(q1))) + np.abs(np.diff(q2)) + np.abs(_wrap(np.diff(q3)))
-        other = (np.abs(_wrap(q1[1:] + np.pi - q1[:-1])) + np.abs(_wrap(np.pi - q2[1:] - q2[:-1]))
-                 + np.abs(_wrap(q3[1:] + np.pi - q3[:-1])))
+        same = np.abs(wrap_angle(np.diff(q1))) + np.abs(np.diff(q2)) + np.abs(wrap_angle(np.diff(q3)))
+        other = (np.abs(wrap_angle(q1[1:] + np.pi - q1[:-1])) + np.abs(wrap_angle(np.pi - q2[1:] - q2[:-1]))
+                 + np.abs(wrap_angle(q3[1:] + np.pi - q3[:-1])))
         flipped = np.concatenate([[False], np.cumsum(other < same) % 2 == 1])
         q1 = np.where(flipped, q1 + np.pi, q1)
         q2 = np.where(flipped, np.pi - q2, q2)

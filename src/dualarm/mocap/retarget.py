@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dualarm.kinematics import BAXTER_JOINT_LIMITS
+from dualarm.kinematics import BAXTER_JOINT_LIMITS, wrap_angle
 
 
 @dataclass(frozen=True)
@@ -35,7 +35,7 @@ def to_baxter(q_human: np.ndarray) -> Retargeted:
     q = np.asarray(q_human, dtype=float)
     if q.ndim != 2 or q.shape[1] != 14:
         raise ValueError(f"joint angles must have shape (T, 14), got {q.shape}")
-    q = (q + np.pi) % (2 * np.pi) - np.pi
+    q = wrap_angle(q)
     limits = np.tile(BAXTER_JOINT_LIMITS, (2, 1))
     clipped = (q < limits[:, 0]) | (q > limits[:, 1])
     return Retargeted(np.clip(q, limits[:, 0], limits[:, 1]), clipped.mean(axis=0))
