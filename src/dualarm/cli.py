@@ -62,7 +62,7 @@ def _map_file(path: Path, args: argparse.Namespace):
     from dualarm.mocap.io import read_recording
     from dualarm.mocap.mapping import map_recording
 
-    rec = read_recording(path, sensor_map=getattr(args, "sensor_map", None))
+    rec = read_recording(path, sensor_map=args.sensor_map)
     return rec, map_recording(rec, calib_seconds=args.calib_seconds, calib_start=args.calib_start,
                               heading=args.heading)
 
@@ -135,7 +135,7 @@ def cmd_quickstart(args: argparse.Namespace) -> int:
     """Map the built-in example recording and write tables and figures."""
     out: Path = args.output
     out.mkdir(parents=True, exist_ok=True)
-    defaults = argparse.Namespace(calib_seconds=1.0, calib_start=0.0, heading="auto")
+    defaults = argparse.Namespace(calib_seconds=1.0, calib_start=0.0, heading="auto", sensor_map=None)
     rec, result = _map_file(EXAMPLE_RECORDING, defaults)
     _write_joint_table(out / "human_joint_angles.csv", result.joints.time, result.joints.q)
     _write_joint_table(out / "baxter_joint_angles.csv", result.joints.time, result.robot.q)
@@ -189,8 +189,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="the file's sensor (or column prefix) names for ours, e.g. "
                             "'RUA=right_upper_arm,RFA=right_forearm,...'")
         p.add_argument("--heading", choices=("auto", "off"), default="auto",
-                       help="correct per-sensor heading offsets detected from the elbow/wrist "
-                            "constraints (default: auto)")
+                       help="fit the elbow and wrist as hinges and correct what they reveal: "
+                            "sensor heading offsets, the arm's facing, the forearm twist (default: auto)")
 
     joints = msub.add_parser("joints", help="write the 14 joint angles of both arms as CSV",
                              description="Write time,left_q1..left_q7,right_q1..right_q7 (rad), one row "

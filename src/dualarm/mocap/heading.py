@@ -134,8 +134,8 @@ def _fit_joint(A_parent, A_child, *, positive_flexion: bool) -> tuple[float, flo
     flexed = False
     if positive_flexion:
         # Flexion a = atan2(-z, x) of the child axis in the corrected parent frame: keep a > 0 on average.
-        rel = _conjugate_heading(np.swapaxes(A_parent, -1, -2) @ _conjugate_heading(A_child, delta), phi)
-        mean_flexion = float(np.mean(np.arctan2(-rel[:, 2, 0], rel[:, 0, 0])))
+        axis = _child_axis(A_parent, A_child, delta) @ axis_rotation(0, phi).T
+        mean_flexion = float(np.mean(np.arctan2(-axis[:, 2], axis[:, 0])))
         flexed = abs(mean_flexion) > MIN_MEAN_FLEXION
         if mean_flexion < 0:
             phi += np.pi
