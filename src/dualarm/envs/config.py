@@ -1,0 +1,115 @@
+"""One configuration of the reach-grasp-align task: every threshold, range and weight by name.
+
+Values the paper gives are marked (paper); the rest were chosen so that the scripted
+expert solves the task with margin (``benchmarks/expert_success.py`` measures it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+
+from dualarm.envs.scene import SceneConfig
+
+CONDITIONS = ("none", "single", "multi")
+GOALS = ("subtask", "final")
+
+
+@dataclass(frozen=True)
+class TaskConfig:
+    """The reach-grasp-align task of paper Section 3.2.1 (lengths in m, times in s).
+
+    Attributes:
+        control: "cartesian" (per arm dx, dy, dz, grip) or "joint" (7 joint deltas, grip).
+        condition: guidance by human joint-angle constraints: "none", "single" (C1) or
+            "multi" (C2 for reach+grasp, C3 for align).
+        goal: what ``goal_i`` in the distance term is. "subtask" (default): the box's grasp
+            point during reach and grasp, the arm's target during align. "final": the
+            arm's target throughout, as Eq. 17 is printed (pos_finalgoal).
+        joint_angles_in_obs: put each arm's 7 joint angles in its observation; None means
+            "only when guided" (the paper adds them for the constrained conditions).
+        max_episode_steps: steps before truncation.
+        substeps: physics steps per control step (control period = substeps * timestep).
+        max_cartesian_step: grip-site displacement per step at action 1 (paper's gym: 5 cm).
+        max_joint_step: joint-target change per step at action 1 in joint mode (rad).
+        min_grip_height: lowest grip-site height above the table top (keeps fingers off it).
+        reach_threshold: reach is complete when the grip site is this close to the box centre.
+        grasp_tolerance: the box counts as between the fingers within this of the grip site.
+        grasp_gap_margin: fingers count as closed on the box when their gap is at most the
+            box width plus this.
+        lift_height: grasp is complete when the held box is this far above its start height.
+        align_threshold: a box is at its target when its centre is this close to it.
+        reach_bonus: rg1, given once when reach completes (paper: 1).
+        grasp_bonus: rg2, given once when grasp completes (paper: 20).
+        coordinate_bonus: rc, given once to both agents on success (paper: 4000).
+        guide_c0: c0 per sub-task (reach, grasp, align) of the guide term (paper: 0.01, 0.01, 0.05).
+        box_x_range: x range of both boxes' start positions.
+        box_y_range: |y| range of the boxes' start positions (left box at +y, right at -y).
+        target_x_range: x range of the two targets (shared: the boxes end aligned).
+        target_center_y_range: y range of the midpoint between the two targets.
+        target_height_range: height of the targets above the boxes' resting height.
+        target_half_separation: half the distance between the two targets along y.
+        home_grip: (x, |y|, z) of the grip sites at reset (left at +y).
+        terminate_on_success: end the episode when both boxes are at their targets.
+        scene: geometry and physics of the scene.
+    """
+
+    control: str = "cartesian"
+    condition: str = "none"
+    goal: str = "subtask"
+    joint_angles_in_obs: bool | None = None
+    max_episode_steps: int = 80
+    substeps: int = 10
+    max_cartesian_step: float = 0.05
+    max_joint_step: float = 0.1
+    min_grip_height: float = 0.02
+    reach_threshold: float = 0.02
+    grasp_tolerance: float = 0.02
+    grasp_gap_margin: float = 0.006
+    lift_height: float = 0.02
+    align_threshold: float = 0.03
+    reach_bonus: float = 1.0
+    grasp_bonus: float = 20.0
+    coordinate_bonus: float = 4000.0
+    guide_c0: tuple[float, float, float] = (0.01, 0.01, 0.05)
+    box_x_range: tuple[float, float] = (0.55, 0.75)
+    box_y_range: tuple[float, float] = (0.1, 0.3)
+    target_x_range: tuple[float, float] = (0.6, 0.75)
+    target_center_y_range: tuple[float, float] = (-0.05, 0.05)
+    target_height_range: tuple[float, float] = (0.1, 0.22)
+    target_half_separation: float = 0.1
+    home_grip: tuple[float, float, float] = (0.5, 0.25, 0.95)
+    terminate_on_success: bool = True
+    scene: SceneConfig = field(default_factory=SceneConfig)
+
+    def __post_init__(self):
+        from dualarm.envs.scene import CONTROL_MODES
+        if self.control not in CONTROL_MODES:
+            raise ValueError(f"control must be one of {CONTROL_MODES}, got {self.control!r}")
+        if self.condition not in CONDITIONS:
+            raise ValueError(f"condition must be one of {CONDITIONS}, got {self.condition!r}")
+        if self.goal not in GOALS:
+            raise ValueError(f"goal must be one of {GOALS}, got {self.goal!r}")
+        if self.max_episode_steps < 1 or self.substeps < 1:
+            raise ValueError("max_episode_steps and substeps must be at least 1")
+        if len(self.guide_c0) != 3 or min(self.guide_c0) < 0:
+            raise ValueError(f"guide_c0 must be 3 non-negative numbers, got {self.guide_c0}")
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name.endswith("_range") and not (len(value) == 2 and value[0] <= value[1]):
+                raise ValueError(f"{f.name} must be (low, high) with low <= high, got {value}")
+
+    @property
+    def observes_joint_angles(self) -> bool:
+        """Whether observations carry the joint angles (resolves ``joint_angles_in_obs=None``)."""
+        if self.joint_angles_in_obs is None:
+            return self.condition != "none"
+        return self.joint_angles_in_obs
+
+    @property
+    def control_period(self) -> float:
+        """Seconds of simulated time per environment step."""
+        return self.substeps * self.scene.timestep
+
+    def with_(self, **changes) -> "TaskConfig":
+        """A copy with some fields changed."""
+        return replace(self, **changes)
