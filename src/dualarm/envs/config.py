@@ -57,7 +57,7 @@ class TaskConfig:
     condition: str = "none"
     goal: str = "subtask"
     joint_angles_in_obs: bool | None = None
-    max_episode_steps: int = 80
+    max_episode_steps: int = 50
     substeps: int = 10
     max_cartesian_step: float = 0.05
     max_joint_step: float = 0.1

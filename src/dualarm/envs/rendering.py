@@ -49,7 +49,7 @@ class SceneRenderer:
         self.data = mujoco.MjData(self.model)
         self.renderer = make_renderer(self.model, height, width)
         self.options = mujoco.MjvOption()
-        self.options.geomgroup[2] = 0   # hide the helper sites and frames
+        self.options.sitegroup[:] = 0   # hide robosuite's helper sites (a 20 m grip axis among them)
 
     def render(self, physics: mujoco.MjData, camera: str = "front") -> np.ndarray:
         """RGB frame (height, width, 3) uint8 of ``physics`` seen from ``camera``."""
@@ -58,7 +58,7 @@ class SceneRenderer:
         self.data.qpos[:] = physics.qpos
         self.data.mocap_pos[:] = physics.mocap_pos
         self.data.mocap_quat[:] = physics.mocap_quat
-        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_forward(self.model, self.data)   # kinematics and the cameras' poses
         self.renderer.update_scene(self.data, camera=camera, scene_option=self.options)
         return self.renderer.render()
 

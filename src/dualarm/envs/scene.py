@@ -79,7 +79,7 @@ class SceneConfig:
     """
 
     table_center: tuple[float, float] = (0.72, 0.0)
-    table_half_size: tuple[float, float] = (0.38, 0.7)
+    table_half_size: tuple[float, float] = (0.3, 0.6)
     table_height: float = 0.75
     box_half_size: float = 0.025
     box_mass: float = 0.1
@@ -192,6 +192,9 @@ def _baxter_spec(assets: Path, visual: bool, control: str) -> mujoco.MjSpec:
             data[10] = 1.0
             weld.data = data
             weld.solref = list(WELD_SOLREF)
+    for geom in robot.geoms:   # robosuite's translucent head-collision spheres: keep, but unseen
+        if geom.name.startswith("collision_head_link"):
+            geom.rgba = [0.8, 0.3, 0.3, 0.0]
     if not visual:
         _strip_visual_meshes(robot)
     for body in robot.bodies:
@@ -228,6 +231,9 @@ def build_spec(config: SceneConfig = SceneConfig(), visual: bool = True,
     spec.stat.extent = 1.5
 
     world = spec.worldbody
+    spec.add_texture(name="sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+                     builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=[0.55, 0.65, 0.8],
+                     rgb2=[0.1, 0.12, 0.16], width=256, height=256)
     spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
                      builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=[0.82, 0.84, 0.86],
                      rgb2=[0.72, 0.74, 0.76], width=512, height=512)
@@ -266,8 +272,9 @@ def build_spec(config: SceneConfig = SceneConfig(), visual: bool = True,
 
     # Cameras: front view as in Fig. 5 (from in front of and above the table, looking back at
     # the robot), and a top view.
-    world.add_camera(name="front", pos=[2.05, 0.0, 1.75], xyaxes=[0, 1, 0, -0.52, 0, 0.85], fovy=45)
-    world.add_camera(name="side", pos=[1.4, -1.45, 1.55], xyaxes=[0.72, 0.69, 0, -0.3, 0.32, 0.9], fovy=45)
+    world.add_camera(name="front", pos=[2.0, 0.0, 1.75], xyaxes=[0, 1, 0, -0.447, 0, 0.894], fovy=50)
+    world.add_camera(name="side", pos=[1.3, -1.2, 1.5],
+                     xyaxes=[0.8637, 0.5039, 0, -0.1854, 0.3178, 0.9297], fovy=45)
     return spec
 
 
