@@ -7,6 +7,9 @@ __version__ = "0.1.0"
 
 # Headless Linux: MuJoCo's default OpenGL backend (GLFW) needs a display. Choose EGL
 # unless the user chose a backend or has a display; must happen before mujoco is imported.
+#: Whether MuJoCo was imported before dualarm (then our backend choice came too late).
+MUJOCO_IMPORTED_FIRST = "mujoco" in _sys.modules
+
 if _sys.platform.startswith("linux") and "MUJOCO_GL" not in _os.environ \
         and not _os.environ.get("DISPLAY") and not _os.environ.get("WAYLAND_DISPLAY"):
     _os.environ["MUJOCO_GL"] = "egl"

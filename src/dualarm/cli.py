@@ -217,6 +217,9 @@ def build_parser() -> argparse.ArgumentParser:
                               description="Regenerate the built-in example recording (deterministic).")
     example.add_argument("-o", "--output", type=Path, required=True, metavar="FILE.csv")
     example.set_defaults(func=cmd_mocap_example)
+
+    from dualarm.cli_env import add_env_commands
+    add_env_commands(sub)
     return parser
 
 

@@ -28,7 +28,14 @@ def make_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Rend
     try:
         return mujoco.Renderer(model, height=height, width=width)
     except Exception as error:  # the GL backends raise assorted types
+        import dualarm
+
         backend = os.environ.get("MUJOCO_GL", "(unset: GLFW, needs a display)")
+        if dualarm.MUJOCO_IMPORTED_FIRST:
+            raise DualarmError(
+                f"cannot start MuJoCo's renderer ({error}): mujoco was imported before dualarm "
+                "and picked its OpenGL backend then. Set MUJOCO_GL=egl (or osmesa) in the "
+                "environment, or import dualarm first") from error
         raise DualarmError(
             f"cannot start MuJoCo's renderer with MUJOCO_GL={backend}: {error}. On a headless "
             "machine install EGL (apt-get install libegl1 libgl1 libgles2) and run with "

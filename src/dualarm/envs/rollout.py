@@ -1,0 +1,74 @@
+"""Run episodes of the dual-arm task with a policy: returns, success, frames."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from dualarm.envs.baxter import BaxterReachGraspAlign
+from dualarm.envs.expert import ScriptedExpert
+
+POLICIES = ("expert", "random")
+
+#: A policy maps observations (2, obs_size) to actions (2, action_size) in [-1, 1].
+Policy = Callable[[np.ndarray], np.ndarray]
+
+
+def make_policy(name: str, env: BaxterReachGraspAlign, seed: int = 0) -> Policy:
+    """A built-in policy by name: "expert" (scripted, cartesian only) or "random" (uniform)."""
+    if name == "expert":
+        return ScriptedExpert(env.config)
+    if name == "random":
+        rng = np.random.default_rng(seed)
+        return lambda obs: rng.uniform(-1.0, 1.0, (2, env.action_size))
+    raise ValueError(f"policy must be one of {POLICIES}, got {name!r}")
+
+
+@dataclass
+class Episode:
+    """One episode's outcome.
+
+    Attributes:
+        seed: the reset seed.
+        success: both boxes reached their targets.
+        steps: environment steps taken.
+        returns: (2,) summed rewards of the left and right arm.
+        subtasks: (steps, 2) sub-task index of each arm after each step.
+        joint_angles: (steps + 1, 14) Baxter joint angles (rad) from the reset on.
+        frames: rendered RGB frames, if asked for.
+    """
+
+    seed: int
+    success: bool
+    steps: int
+    returns: np.ndarray
+    subtasks: np.ndarray
+    joint_angles: np.ndarray
+    frames: list[np.ndarray] = field(default_factory=list)
+
+
+def run_episode(env: BaxterReachGraspAlign, policy: Policy, seed: int,
+                camera: str | None = None) -> Episode:
+    """Run one episode from ``reset(seed)`` until it terminates or is truncated.
+
+    Args:
+        camera: render a frame after the reset and after every step from this camera.
+    """
+    obs, _ = env.reset(seed=seed)
+    frames = [env.render(camera)] if camera else []
+    returns = np.zeros(2)
+    subtasks, joints = [], [env.joint_angles()]
+    while True:
+        result = env.step(policy(obs))
+        obs = result.obs
+        returns += result.reward
+        subtasks.append(result.info["subtask"].copy())
+        joints.append(env.joint_angles())
+        if camera:
+            frames.append(env.render(camera))
+        if result.terminated or result.truncated:
+            break
+    return Episode(seed, bool(result.info["is_success"]), env.steps, returns,
+                   np.array(subtasks), np.array(joints), frames)
