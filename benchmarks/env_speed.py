@@ -1,27 +1,34 @@
 """Time the Baxter reach-grasp-align environment against the raw MuJoCo physics under it.
 
-Usage: python benchmarks/env_speed.py [--steps 3000] [--repeat 7] [--seed 0] [--csv]
+Usage: python benchmarks/env_speed.py [--steps 3000] [--repeat 7] [--chunk 250] [--seed 0]
+                                    [--csv] [--no-breakdown] [--breakdown-repeat 3]
 
 For each case (cartesian control driven by the scripted expert, cartesian with uniform
 random actions, joint control with uniform random actions) and each repeat:
 
 1. env: ``--steps`` environment steps, resetting when an episode ends. Only the
    ``env.step`` and ``env.reset`` calls are timed (resets are counted in the env time,
-   amortised over the steps); the policy's own time is reported apart. Before every step
-   MuJoCo integration state (``mjSTATE_INTEGRATION``: time, qpos, qvel, warm start, ...)
-   is recorded, and after it the controls and mocap poses the step set before its
-   ``mj_step`` (ctrl, mocap_pos, mocap_quat), both outside the timer.
-2. physics: every recorded state (with that step's controls) is set on a separate
-   ``MjData`` of the same model and advanced by ``mj_step(nstep=substeps)``; only the ``mj_step`` calls are timed. This is
-   the physics the env did, without anything the Python layer adds.
+   amortised over the steps); the policy's own time is reported apart. Outside the
+   timer, the MuJoCo integration state (``mjSTATE_INTEGRATION`` less the commands: time,
+   qpos, qvel, warm start, ...) is recorded before every step, and the commands the step
+   set before its ``mj_step`` (ctrl, mocap_pos, mocap_quat) after it.
+2. physics: every recorded state, with its step's commands, is set on a separate
+   ``MjData`` of the same model and advanced by ``mj_step(nstep=substeps)``; only the
+   ``mj_step`` calls are timed. This is the physics the env did (the replay reproduces
+   the env's trajectory bit for bit; the script checks it), without the Python layer.
 
-Env and physics measurements alternate, so that both see the same machine speed. Every
-repeat runs the same seeded episodes. Reported: the best (lowest time) and the median over
-the repeats; the overhead, (env time per step - physics time per step) / physics time per
-step, is taken from the best times and as the median of the per-repeat ratios.
+Env and physics timing alternate every ``--chunk`` steps (a fraction of a second), so that
+both see the same machine speed; every repeat runs the same seeded episodes. Reported:
+the best (lowest time) and the median over the repeats. The overhead, (env time per step
+- physics time per step) / physics time per step, is taken from the best times and as the
+median of the per-repeat ratios.
+
+The breakdown (skip with --no-breakdown) runs each case again with ``mujoco.mj_step``
+wrapped in a timer, which splits ``env.step`` into the physics as it runs inside the env
+(which can be slower than the replay: the Python work between steps evicts MuJoCo's data
+from the caches) and the rest, then times the Python parts of a step one by one.
 Runs on one core (thread counts pinned to 1 before numpy loads).
 """
-
 import os
 
 for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -47,6 +54,16 @@ COMMAND = int(_S.mjSTATE_CTRL) | int(_S.mjSTATE_MOCAP_POS) | int(_S.mjSTATE_MOCA
 #: The rest of the integration state (read before the step).
 STATE = int(_S.mjSTATE_INTEGRATION) & ~COMMAND
 CASES = (("cartesian", "expert"), ("cartesian", "random"), ("joint", "random"))
+
+
+def cpu_times() -> tuple[int, int] | None:
+    """(steal, total) jiffies of all CPUs from /proc/stat, None where unavailable."""
+    try:
+        with open("/proc/stat") as f:
+            values = [int(v) for v in f.readline().split()[1:]]
+        return values[7], sum(values[:8])
+    except (OSError, ValueError, IndexError):
+        return None
 
 
 def machine() -> str:
@@ -76,7 +93,7 @@ class Case:
         self.commands = np.zeros((steps, mujoco.mj_stateSize(self.model, COMMAND)))
         self.qpos = np.zeros((steps, self.model.nq))
         self.first_of_episode = np.zeros(steps, dtype=bool)
-        self.env_s, self.step_s, self.reset_s, self.policy_s, self.physics_s = [], [], [], [], []
+        self.env_s, self.reset_s, self.policy_s, self.physics_s = [], [], [], []
         self.episodes = self.physics_errors = 0
         self.replay_mismatch = None
 
@@ -87,19 +104,26 @@ class Case:
         shape = (2, self.env.action_size)
         return lambda obs: rng.uniform(-1.0, 1.0, size=shape)
 
-    def run_env(self) -> None:
+    def run_env(self, lo: int = 0, hi: int | None = None) -> tuple[float, float, float]:
+        """Env steps ``lo`` to ``hi`` of the seeded episodes (``lo == 0``: from the seeded
+        reset), recording their states; seconds in (step, reset, policy)."""
+        hi = self.steps if hi is None else hi
         env, m, d = self.env, self.model, self.env.data
-        policy = self._policy()
         clock, get_state = time.perf_counter, mujoco.mj_getState
         states, commands, qpos, first = self.states, self.commands, self.qpos, self.first_of_episode
-        first[:] = False
         t_step = t_reset = t_policy = 0.0
+        if lo == 0:
+            self._act = self._policy()
+            self.episodes = self.physics_errors = 0
+            first[:] = False
+            t0 = clock()
+            self._obs, _ = env.reset(seed=self.seed)
+            t_reset += clock() - t0
+            self._done, first[0] = False, True
+            self.episodes = 1
+        policy, obs, done = self._act, self._obs, self._done
         episodes = errors = 0
-        t0 = clock()
-        obs, _ = env.reset(seed=self.seed)
-        t_reset += clock() - t0
-        done, first[0] = False, True
-        for i in range(self.steps):
+        for i in range(lo, hi):
             if done:
                 t0 = clock()
                 obs, _ = env.reset()
@@ -118,29 +142,70 @@ class Case:
             obs = result.obs
             done = result.terminated or result.truncated
             errors += result.info["physics_error"]
-        self.episodes, self.physics_errors = episodes + 1, errors
-        self.step_s.append(t_step)
-        self.reset_s.append(t_reset)
-        self.env_s.append(t_step + t_reset)
-        self.policy_s.append(t_policy)
+        self._obs, self._done = obs, done
+        self.episodes += episodes
+        self.physics_errors += errors
+        return t_step, t_reset, t_policy
 
-    def run_physics(self, check: bool = False) -> None:
+    def run_physics(self, lo: int = 0, hi: int | None = None, check: bool = False) -> float:
+        """Replay the recorded steps ``lo`` to ``hi``; seconds in ``mj_step``."""
+        hi = self.steps if hi is None else hi
         m, d = self.model, self.replay
         nstep = self.config.substeps
         clock, set_state, step = time.perf_counter, mujoco.mj_setState, mujoco.mj_step
         total = 0.0
         mismatch = 0
-        for i in range(self.steps):
+        for i in range(lo, hi):
             set_state(m, d, self.states[i], STATE)
             set_state(m, d, self.commands[i], COMMAND)
             t0 = clock()
             step(m, d, nstep=nstep)
             total += clock() - t0
-            if check and i + 1 < self.steps and not self.first_of_episode[i + 1]:
+            if check and i + 1 < hi and not self.first_of_episode[i + 1]:
                 mismatch += not np.array_equal(d.qpos, self.qpos[i + 1])
-        self.physics_s.append(total)
         if check:
             self.replay_mismatch = mismatch
+        return total
+
+    def measure(self, chunk: int) -> None:
+        """One repeat: ``chunk`` env steps, their physics replayed, the next ``chunk``, ..."""
+        env = reset = policy = physics = 0.0
+        for lo in range(0, self.steps, chunk):
+            hi = min(lo + chunk, self.steps)
+            t_step, t_reset, t_policy = self.run_env(lo, hi)
+            env += t_step + t_reset
+            reset += t_reset
+            policy += t_policy
+            physics += self.run_physics(lo, hi)
+        self.env_s.append(env)
+        self.reset_s.append(reset)
+        self.policy_s.append(policy)
+        self.physics_s.append(physics)
+
+    def physics_inside_env(self, repeat: int, chunk: int) -> tuple[float, float, float]:
+        """Best-of-``repeat`` us per step: env step (resets excluded), its own ``mj_step``
+        calls (timed by wrapping ``mujoco.mj_step``), and the replay of the same steps."""
+        original, spent = mujoco.mj_step, [0.0]
+        clock = time.perf_counter
+
+        def timed(m, d, nstep=1):
+            t0 = clock()
+            original(m, d, nstep=nstep)
+            spent[0] += clock() - t0
+
+        best = (float("inf"),) * 3
+        for _ in range(repeat):
+            spent[0] = t_step = t_replay = 0.0
+            for lo in range(0, self.steps, chunk):
+                hi = min(lo + chunk, self.steps)
+                mujoco.mj_step = timed
+                try:
+                    t_step += self.run_env(lo, hi)[0]
+                finally:
+                    mujoco.mj_step = original
+                t_replay += self.run_physics(lo, hi)
+            best = tuple(min(b, t) for b, t in zip(best, (t_step, spent[0], t_replay)))
+        return tuple(1e6 * t / self.steps for t in best)
 
     # ------------------------------------------------------------ summaries
     def summary(self) -> dict:
@@ -156,7 +221,7 @@ class Case:
             "policy_us_per_step_best": 1e6 * min(self.policy_s) / n,
             "physics_us_per_step_best": 1e6 * phys_best / n,
             "physics_us_per_step_median": 1e6 * phys_med / n,
-            "mj_step_calls_per_s_best": n * sub / phys_best,
+            "mj_substeps_per_s_best": n * sub / phys_best,
             "physics_max_env_steps_per_s": n / phys_best,
             "overhead_pct_best": 100.0 * (env_best - phys_best) / phys_best,
             "overhead_pct_median": 100.0 * (statistics.median(ratios) - 1.0),
@@ -175,27 +240,44 @@ def per_call_us(fn, calls: int = 2000, batches: int = 5) -> float:
     return 1e6 * best / calls
 
 
-def breakdown(config: TaskConfig, settle_steps: int = 20) -> dict[str, float] | None:
-    """Approximate per-step cost (us) of the parts of ``env.step`` other than ``mj_step``.
+def python_parts(config: TaskConfig, settle_steps: int = 20) -> dict[str, float] | None:
+    """Approximate cost (us) of the Python parts of one cartesian ``env.step``.
 
-    Each part is timed in isolation, in a tight loop, on a mid-episode state of a scratch
-    env. It relies on ``BaxterReachGraspAlign``'s private helpers; None if they changed.
+    Each part is timed alone, in a tight loop (warm caches: a lower bound), on a
+    mid-episode state of a scratch env. It mirrors ``BaxterReachGraspAlign.step`` and uses
+    its private helpers; None if they have changed.
     """
     try:
+        from dualarm.envs.baxter import _FINGER_TRAVEL, FINGER_OPEN
         env = BaxterReachGraspAlign(config)
         expert = ScriptedExpert(config)
         obs, _ = env.reset(seed=1)
         for _ in range(settle_steps):
             obs = env.step(expert(obs)).obs
-        action = expert(obs)
-        m, d = env.model, env.data
+        raw = expert(obs)
+        a = env.check_action(raw)
+        m, d, ix, c = env.model, env.data, env.ix, config
         grip = env._prev_grip
         state = env._evaluate(grip)
         terms = env._reward_terms(state)
         zeros = np.zeros((2, 3))
-        parts = {
+
+        def commands():
+            target = grip + c.max_cartesian_step * a[:, :3]
+            d.mocap_pos[ix.hand_mocap] = np.minimum(np.maximum(target, env._workspace_low),
+                                                    env._workspace_high)
+            d.ctrl[ix.finger_ctrl] = FINGER_OPEN + (0.5 * (a[:, -1:] + 1.0)) * _FINGER_TRAVEL
+
+        def checks():
+            d.warning[env._bad_qacc].number
+            np.isfinite(d.qpos.sum())
+            (d.site_xpos[ix.grip_site] - grip) * (1.0 / c.control_period)
+
+        return {
+            "check_action": per_call_us(lambda: env.check_action(raw)),
+            "set commands": per_call_us(commands),
             "mj_kinematics": per_call_us(lambda: mujoco.mj_kinematics(m, d)),
-            "check_action": per_call_us(lambda: env.check_action(action)),
+            "warning/finite/grip velocity": per_call_us(checks),
             "_evaluate": per_call_us(lambda: env._evaluate(grip)),
             "_reward_terms": per_call_us(lambda: env._reward_terms(state)),
             "_observe": per_call_us(lambda: env._observe(state, zeros)),
@@ -203,8 +285,7 @@ def breakdown(config: TaskConfig, settle_steps: int = 20) -> dict[str, float] | 
                 lambda: StepResult(obs, terms["distance"], False, False,
                                    env._info(state, terms, False))),
         }
-        return parts
-    except (AttributeError, TypeError, KeyError):
+    except (AttributeError, TypeError, KeyError, ImportError, NameError):
         return None
 
 
@@ -212,41 +293,56 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=3000, help="env steps per case and repeat")
     ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--chunk", type=int, default=250,
+                    help="env steps between switches from env to physics timing")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--csv", action="store_true", help="also print machine-readable rows")
+    ap.add_argument("--no-breakdown", dest="breakdown", action="store_false",
+                    help="skip the overhead breakdown (an extra pass with mj_step wrapped)")
+    ap.add_argument("--breakdown-repeat", type=int, default=3)
     args = ap.parse_args()
 
     print(f"machine: {machine()}")
+    start_wall, start_own, start_cpu = time.perf_counter(), time.process_time(), cpu_times()
     cases = [Case(mode, policy, args.steps, args.seed) for mode, policy in CASES]
-    for case in cases:                       # warm-up: imports, caches, first-call costs
+    for case in cases:                       # warm-up (first-call costs), replay check
         case.run_env()
         case.run_physics(check=True)
-        case.env_s.clear(), case.step_s.clear(), case.reset_s.clear()
-        case.policy_s.clear(), case.physics_s.clear()
     for _ in range(args.repeat):             # interleaved: env, physics, env, physics, ...
         for case in cases:
-            case.run_env()
-            case.run_physics()
+            case.measure(args.chunk)
     rows = [case.summary() for case in cases]
+    end_cpu = cpu_times()
+    wall = time.perf_counter() - start_wall
+    share = 100.0 * (time.process_time() - start_own) / wall
+    steal = (f"{100.0 * (end_cpu[0] - start_cpu[0]) / (end_cpu[1] - start_cpu[1]):.1f}%"
+             if start_cpu and end_cpu and end_cpu[1] > start_cpu[1] else "unknown")
+    load = " ".join(f"{x:.2f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "unknown"
+    measured = (f"measurement: {wall:.0f} s wall, this process on a CPU {share:.0f}% of it "
+                f"(below 100%: other processes competed), CPU time stolen by the hypervisor "
+                f"{steal}, load average {load}")
 
     c0 = cases[0].config
-    print(f"{args.steps} env steps per case x {args.repeat} repeats (interleaved env / physics), "
+    print(f"{args.steps} env steps per case x {args.repeat} repeats (env / physics interleaved "
+          f"every {args.chunk} steps), "
           f"{c0.substeps} substeps of {1e3 * c0.scene.timestep:g} ms per env step, "
           f"episodes of at most {c0.max_episode_steps} steps; best / median over repeats")
+    print(measured)
     for case, row in zip(cases, rows):
+        same = ("yes" if case.replay_mismatch == 0
+                else f"NO ({case.replay_mismatch} mismatches)")
         print(f"  {row['mode']}/{row['policy']}: {row['episodes']} episodes per repeat, "
-              f"{row['physics_errors']} physics errors, replay reproduced the env's qpos: "
-              f"{'yes' if case.replay_mismatch == 0 else f'NO ({case.replay_mismatch} mismatches)'}")
+              f"{row['physics_errors']} physics errors, replay reproduced the env's qpos: {same}")
     print()
     print("| mode | policy | env steps/s best | median | env us/step | of which reset | "
-          "physics us/step best | median | mj_step calls/s | physics-only max steps/s | "
+          "physics us/step best | median | mj_step substeps/s | physics-only max steps/s | "
           "overhead % best | median | policy us/step |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         print(f"| {r['mode']} | {r['policy']} | {r['env_steps_per_s_best']:,.0f} | "
               f"{r['env_steps_per_s_median']:,.0f} | {r['env_us_per_step_best']:.0f} | "
               f"{r['reset_us_per_step_best']:.1f} | {r['physics_us_per_step_best']:.0f} | "
-              f"{r['physics_us_per_step_median']:.0f} | {r['mj_step_calls_per_s_best']:,.0f} | "
+              f"{r['physics_us_per_step_median']:.0f} | {r['mj_substeps_per_s_best']:,.0f} | "
               f"{r['physics_max_env_steps_per_s']:,.0f} | {r['overhead_pct_best']:.1f} | "
               f"{r['overhead_pct_median']:.1f} | {r['policy_us_per_step_best']:.1f} |")
     print()
@@ -262,19 +358,28 @@ def main() -> None:
               f"median ({'met' if over_ok else 'MISSED'} at best)")
     for r in rows:
         if r["mode"] == "joint":
+            over_ok = r["overhead_pct_best"] < TARGET_OVERHEAD_PCT
             print(f"overhead target, joint/{r['policy']}: {r['overhead_pct_best']:.1f}% best, "
                   f"{r['overhead_pct_median']:.1f}% median "
-                  f"({'met' if r['overhead_pct_best'] < TARGET_OVERHEAD_PCT else 'MISSED'} at best)")
+                  f"({'met' if over_ok else 'MISSED'} at best)")
 
-    parts = breakdown(c0)
-    if parts is not None:
-        r = rows[0]
-        overhead = r["env_us_per_step_best"] - r["physics_us_per_step_best"]
-        listed = sum(parts.values()) + r["reset_us_per_step_best"]
-        text = ", ".join(f"{k} {v:.1f}" for k, v in parts.items())
-        print(f"overhead breakdown, cartesian/expert, us per step (parts timed alone): "
-              f"{overhead:.1f} total = {text}, reset (amortised) {r['reset_us_per_step_best']:.1f}, "
-              f"rest {overhead - listed:.1f}")
+    if args.breakdown:
+        print()
+        print(f"where the overhead goes (best of {args.breakdown_repeat}, us per env step, "
+              f"resets excluded):")
+        for case in cases:
+            step_us, inside_us, replay_us = case.physics_inside_env(args.breakdown_repeat,
+                                                                    args.chunk)
+            python_us = step_us - inside_us
+            print(f"  {case.control}/{case.policy_name}: env.step {step_us:.0f} = mj_step inside "
+                  f"the env {inside_us:.0f} (replayed alone: {replay_us:.0f}, "
+                  f"{100 * (inside_us - replay_us) / replay_us:+.0f}%) + the rest of step "
+                  f"{python_us:.0f} ({100 * python_us / replay_us:.0f}% of the replayed physics)")
+        parts = python_parts(c0)
+        if parts is not None:
+            text = ", ".join(f"{k} {v:.1f}" for k, v in parts.items())
+            print(f"  parts of a cartesian step timed alone (warm caches), us: {text}; "
+                  f"sum {sum(parts.values()):.0f}")
 
     if args.csv:
         keys = list(rows[0])

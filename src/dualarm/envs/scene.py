@@ -272,7 +272,7 @@ def build_spec(config: SceneConfig = SceneConfig(), visual: bool = True,
 
     # Cameras: front view as in Fig. 5 (from in front of and above the table, looking back at
     # the robot), and a top view.
-    world.add_camera(name="front", pos=[2.0, 0.0, 1.75], xyaxes=[0, 1, 0, -0.447, 0, 0.894], fovy=50)
+    world.add_camera(name="front", pos=[1.7, 0.0, 1.55], xyaxes=[0, 1, 0, -0.479, 0, 0.878], fovy=50)
     world.add_camera(name="side", pos=[1.3, -1.2, 1.5],
                      xyaxes=[0.8637, 0.5039, 0, -0.1854, 0.3178, 0.9297], fovy=45)
     return spec
