@@ -197,7 +197,9 @@ class BaxterReachGraspAlign:
         self._workspace_high = np.array([1.1, 0.7, 1.4])
         self._lower = BAXTER_JOINT_LIMITS[:, 0]
         self._upper = BAXTER_JOINT_LIMITS[:, 1]
-        self._bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
+        self._instability = [int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS,
+                                               mujoco.mjtWarning.mjWARN_BADQVEL,
+                                               mujoco.mjtWarning.mjWARN_BADQACC)]
         self.rng = np.random.default_rng()
         self._needs_reset = True
 
@@ -263,10 +265,12 @@ class BaxterReachGraspAlign:
         if a.shape != (2, self.action_size):
             raise ValueError(f"action must have shape (2, {self.action_size}) (rows left, right; "
                              f"columns {', '.join(self.action_names())}), got {a.shape}")
-        if not math.isfinite(a.sum()):  # NaN and inf propagate through the sum: one cheap test
-            arm, index = np.argwhere(~np.isfinite(a))[0]
-            raise ValueError(f"action of the {ARMS[arm]} arm has a non-finite value "
-                             f"{a[arm, index]} at index {index} ({self.action_names()[index]})")
+        if not math.isfinite(a.sum()):  # cheap test first: NaN and inf propagate through the sum
+            bad = np.argwhere(~np.isfinite(a))
+            if len(bad):               # (a sum of huge finite values can overflow: those clip)
+                arm, index = bad[0]
+                raise ValueError(f"action of the {ARMS[arm]} arm has a non-finite value "
+                                 f"{a[arm, index]} at index {index} ({self.action_names()[index]})")
         return np.minimum(np.maximum(a, -1.0), 1.0)
 
     def action_names(self) -> tuple[str, ...]:
@@ -296,11 +300,12 @@ class BaxterReachGraspAlign:
             d.ctrl[ix.arm_ctrl] = self._joint_command
         d.ctrl[ix.finger_ctrl] = FINGER_OPEN + (0.5 * (a[:, -1:] + 1.0)) * _FINGER_TRAVEL
 
-        warnings_before = d.warning[self._bad_qacc].number
+        warnings_before = self._instability_warnings()
         mujoco.mj_step(m, d, nstep=c.substeps)
         mujoco.mj_kinematics(m, d)  # site positions of the new state (mj_step leaves the old)
         self.steps += 1
-        physics_error = (d.warning[self._bad_qacc].number != warnings_before
+        # MuJoCo resets the state itself after a bad qpos/qvel/qacc and warns: count them.
+        physics_error = (self._instability_warnings() != warnings_before
                          or not math.isfinite(d.qpos.sum()))
 
         new_grip = d.site_xpos[ix.grip_site]
@@ -321,6 +326,12 @@ class BaxterReachGraspAlign:
         return StepResult(obs, reward, terminated, truncated, self._info(state, terms, physics_error))
 
     # -------------------------------------------------------------- internals
+    def _instability_warnings(self) -> int:
+        """How many times MuJoCo has found a bad qpos, qvel or qacc (and reset the state)."""
+        w = self.data.warning
+        return w[self._instability[0]].number + w[self._instability[1]].number \
+            + w[self._instability[2]].number
+
     def _evaluate(self, grip: np.ndarray) -> dict:
         """Sub-task predicates of both arms from the current state (one gather of qpos)."""
         c, d = self.config, self.data
