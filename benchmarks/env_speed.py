@@ -1,10 +1,11 @@
 """Time the Baxter reach-grasp-align environment against the raw MuJoCo physics under it.
 
 Usage: python benchmarks/env_speed.py [--steps 3000] [--repeat 7] [--chunk 250] [--seed 0]
-                                    [--csv] [--no-breakdown] [--breakdown-repeat 3]
+                                    [--num-envs 8] [--csv] [--no-breakdown]
 
 For each case (cartesian control driven by the scripted expert, cartesian with uniform
-random actions, joint control with uniform random actions) and each repeat:
+random actions, joint control with uniform random actions, and cartesian with random
+actions on ``--num-envs`` copies stepped together by ``BaxterBatch``) and each repeat:
 
 1. env: ``--steps`` environment steps, resetting when an episode ends. Only the
    ``env.step`` and ``env.reset`` calls are timed (resets are counted in the env time,
@@ -26,7 +27,7 @@ median of the per-repeat ratios.
 The breakdown (skip with --no-breakdown) runs each case again with ``mujoco.mj_step``
 wrapped in a timer, which splits ``env.step`` into the physics as it runs inside the env
 (which can be slower than the replay: the Python work between steps evicts MuJoCo's data
-from the caches) and the rest, then times the Python parts of a step one by one.
+from the caches) and the rest.
 Runs on one core (thread counts pinned to 1 before numpy loads).
 """
 import os
@@ -35,7 +36,6 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[var] = "1"
 
 import argparse  # noqa: E402
-import math  # noqa: E402
 import platform  # noqa: E402
 import statistics  # noqa: E402
 import time  # noqa: E402
@@ -43,7 +43,7 @@ import time  # noqa: E402
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-from dualarm.envs.baxter import BaxterReachGraspAlign, StepResult  # noqa: E402
+from dualarm.envs.baxter import BaxterBatch, BaxterReachGraspAlign  # noqa: E402
 from dualarm.envs.config import TaskConfig  # noqa: E402
 from dualarm.envs.expert import ScriptedExpert  # noqa: E402
 
@@ -230,70 +230,87 @@ class Case:
         }
 
 
-def per_call_us(fn, calls: int = 2000, batches: int = 5) -> float:
-    """Best-of-``batches`` time of one ``fn()`` call, us."""
-    best = float("inf")
-    for _ in range(batches):
-        t0 = time.perf_counter()
-        for _ in range(calls):
-            fn()
-        best = min(best, time.perf_counter() - t0)
-    return 1e6 * best / calls
+class BatchCase(Case):
+    """Cartesian control, random actions, ``num_envs`` copies stepped by one ``BaxterBatch``:
+    the same measurements per environment step (env time, replayed physics)."""
 
+    def __init__(self, num_envs: int, steps: int, seed: int):
+        self.num_envs = num_envs
+        self.rounds = max(1, steps // num_envs)
+        super().__init__("cartesian", "random", self.rounds * num_envs, seed)
+        self.env = BaxterBatch(self.config, num_envs=num_envs)
+        self.policy_name = f"random, {num_envs} envs batched"
 
-def python_parts(config: TaskConfig, settle_steps: int = 20) -> dict[str, float] | None:
-    """Approximate cost (us) of the Python parts of one cartesian ``env.step``.
+    def run_env(self, lo: int = 0, hi: int | None = None) -> tuple[float, float, float]:
+        """Batched rounds covering env steps ``lo`` to ``hi`` (multiples of num_envs)."""
+        hi = self.steps if hi is None else hi
+        env, m, n = self.env, self.model, self.num_envs
+        clock, get_state = time.perf_counter, mujoco.mj_getState
+        t_step = t_reset = t_policy = 0.0
+        if lo == 0:
+            self._rng = np.random.default_rng(self.seed)
+            self.first_of_episode[:] = False
+            self.episodes = self.physics_errors = 0
+            t0 = clock()
+            for i in range(n):
+                env.reset_env(i, self.seed + i)
+            t_reset += clock() - t0
+            self.first_of_episode[:n] = True
+            self.episodes = n
+        for r in range(lo // n, hi // n):
+            base = r * n
+            t0 = clock()
+            for i in np.flatnonzero(env.needs_reset):
+                env.reset_env(int(i))
+                self.first_of_episode[base + i] = True
+                self.episodes += 1
+            t_reset += clock() - t0
+            t0 = clock()
+            actions = self._rng.uniform(-1.0, 1.0, size=(n, 2, env.action_size))
+            t_policy += clock() - t0
+            for i, d in enumerate(env.datas):
+                get_state(m, d, self.states[base + i], STATE)
+                self.qpos[base + i] = d.qpos
+            t0 = clock()
+            result = env.step_all(actions)
+            t_step += clock() - t0
+            for i, d in enumerate(env.datas):
+                get_state(m, d, self.commands[base + i], COMMAND)
+            self.physics_errors += int(result.info["physics_error"].sum())
+        return t_step, t_reset, t_policy
 
-    Each part is timed alone, in a tight loop (warm caches: a lower bound), on a
-    mid-episode state of a scratch env. It mirrors ``BaxterReachGraspAlign.step`` and uses
-    its private helpers; None if they have changed.
-    """
-    try:
-        from dualarm.envs.baxter import _FINGER_TRAVEL, FINGER_OPEN
-        env = BaxterReachGraspAlign(config)
-        expert = ScriptedExpert(config)
-        obs, _ = env.reset(seed=1)
-        for _ in range(settle_steps):
-            obs = env.step(expert(obs)).obs
-        raw = expert(obs)
-        a = env.check_action(raw)
-        m, d, ix, c = env.model, env.data, env.ix, config
-        grip = env._prev_grip
-        state = env._evaluate(grip)
-        terms = env._reward_terms(state)
-        zeros = np.zeros((2, 3))
+    def run_physics(self, lo: int = 0, hi: int | None = None, check: bool = False) -> float:
+        """Replay the recorded (round, env) steps; the check compares each copy's next state."""
+        hi = self.steps if hi is None else hi
+        m, d, n = self.model, self.replay, self.num_envs
+        nstep = self.config.substeps
+        clock, set_state, step = time.perf_counter, mujoco.mj_setState, mujoco.mj_step
+        total, mismatch = 0.0, 0
+        for k in range(lo, hi):
+            set_state(m, d, self.states[k], STATE)
+            set_state(m, d, self.commands[k], COMMAND)
+            t0 = clock()
+            step(m, d, nstep=nstep)
+            total += clock() - t0
+            if check and k + n < hi and not self.first_of_episode[k + n]:
+                mismatch += not np.array_equal(d.qpos, self.qpos[k + n])
+        if check:
+            self.replay_mismatch = mismatch
+        return total
 
-        def commands():
-            target = grip + c.max_cartesian_step * a[:, :3]
-            d.mocap_pos[ix.hand_mocap] = np.minimum(np.maximum(target, env._workspace_low),
-                                                    env._workspace_high)
-            d.ctrl[ix.finger_ctrl] = FINGER_OPEN + (0.5 * (a[:, -1:] + 1.0)) * _FINGER_TRAVEL
+    def physics_inside_env(self, repeat: int, chunk: int) -> tuple[float, float, float]:
+        return Case.physics_inside_env(self, repeat, self._chunk(chunk))
 
-        warnings = getattr(env, "_instability_warnings", None)
-        if warnings is None:                               # older env: bad-qacc count only
-            def warnings():
-                return d.warning[env._bad_qacc].number
+    def measure(self, chunk: int) -> None:
+        Case.measure(self, self._chunk(chunk))
 
-        def checks():
-            warnings()
-            warnings()
-            math.isfinite(d.qpos.sum())
-            (d.site_xpos[ix.grip_site] - grip) * (1.0 / c.control_period)
+    def _chunk(self, chunk: int) -> int:
+        return max(self.num_envs, chunk - chunk % self.num_envs)
 
-        return {
-            "check_action": per_call_us(lambda: env.check_action(raw)),
-            "set commands": per_call_us(commands),
-            "mj_kinematics": per_call_us(lambda: mujoco.mj_kinematics(m, d)),
-            "warning counts/finite/grip velocity": per_call_us(checks),
-            "_evaluate": per_call_us(lambda: env._evaluate(grip)),
-            "_reward_terms": per_call_us(lambda: env._reward_terms(state)),
-            "_observe": per_call_us(lambda: env._observe(state, zeros)),
-            "_info+StepResult": per_call_us(
-                lambda: StepResult(obs, terms["distance"], False, False,
-                                   env._info(state, terms, False))),
-        }
-    except (AttributeError, TypeError, KeyError, ImportError, NameError):
-        return None
+    def summary(self) -> dict:
+        row = super().summary()
+        row["mode"] = f"cartesian x{self.num_envs}"
+        return row
 
 
 def main() -> None:
@@ -303,6 +320,8 @@ def main() -> None:
     ap.add_argument("--chunk", type=int, default=250,
                     help="env steps between switches from env to physics timing")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--num-envs", type=int, default=8,
+                    help="copies stepped together by BaxterBatch in the batched case (0: skip)")
     ap.add_argument("--csv", action="store_true", help="also print machine-readable rows")
     ap.add_argument("--no-breakdown", dest="breakdown", action="store_false",
                     help="skip the overhead breakdown (an extra pass with mj_step wrapped)")
@@ -312,6 +331,8 @@ def main() -> None:
     print(f"machine: {machine()}")
     start_wall, start_own, start_cpu = time.perf_counter(), time.process_time(), cpu_times()
     cases = [Case(mode, policy, args.steps, args.seed) for mode, policy in CASES]
+    if args.num_envs:
+        cases.append(BatchCase(args.num_envs, args.steps, args.seed))
     for case in cases:                       # warm-up (first-call costs), replay check
         case.run_env()
         case.run_physics(check=True)
@@ -354,11 +375,11 @@ def main() -> None:
               f"{r['overhead_pct_median']:.1f} | {r['policy_us_per_step_best']:.1f} |")
     print()
     for r in rows:
-        if r["mode"] != "cartesian":
+        if not r["mode"].startswith("cartesian"):
             continue
         rate_ok = r["env_steps_per_s_best"] >= TARGET_STEPS_PER_S
         over_ok = r["overhead_pct_best"] < TARGET_OVERHEAD_PCT
-        print(f"targets, cartesian/{r['policy']}: >= {TARGET_STEPS_PER_S:,} env steps/s: "
+        print(f"targets, {r['mode']}/{r['policy']}: >= {TARGET_STEPS_PER_S:,} env steps/s: "
               f"{r['env_steps_per_s_best']:,.0f} best, {r['env_steps_per_s_median']:,.0f} median "
               f"({'met' if rate_ok else 'MISSED'} at best); overhead < {TARGET_OVERHEAD_PCT:g}% "
               f"of physics: {r['overhead_pct_best']:.1f}% best, {r['overhead_pct_median']:.1f}% "
@@ -382,13 +403,6 @@ def main() -> None:
                   f"the env {inside_us:.0f} (replayed alone: {replay_us:.0f}, "
                   f"{100 * (inside_us - replay_us) / replay_us:+.0f}%) + the rest of step "
                   f"{python_us:.0f} ({100 * python_us / replay_us:.0f}% of the replayed physics)")
-        parts = python_parts(c0)
-        if parts is not None:
-            text = ", ".join(f"{k} {v:.1f}" for k, v in parts.items())
-            print(f"  parts of a cartesian step timed alone (warm caches), us: {text}; "
-                  f"sum {sum(parts.values()):.0f}")
-        else:
-            print("  parts of a step: not timed (the env's private helpers have changed)")
 
     if args.csv:
         keys = list(rows[0])

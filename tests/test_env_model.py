@@ -68,3 +68,41 @@ def test_missing_robosuite_assets_is_a_clear_error(tmp_path, monkeypatch):
 def test_unknown_control_mode_is_rejected():
     with pytest.raises(ValueError, match="control must be one of"):
         build_spec(control="torque")
+
+
+def test_batch_of_copies_equals_separate_environments():
+    """BaxterBatch steps n copies at once; each must follow exactly the trajectory of a single
+    environment with the same seed and actions, including resets of copies that end."""
+    from dualarm.envs.baxter import BaxterBatch, BaxterReachGraspAlign
+    from dualarm.envs.config import TaskConfig
+    from dualarm.envs.expert import ScriptedExpert
+
+    config = TaskConfig(max_episode_steps=12)
+    batch = BaxterBatch(config, num_envs=3)
+    singles = [BaxterReachGraspAlign(config) for _ in range(3)]
+    expert = ScriptedExpert(config)
+    seeds = [5, 6, 7]
+    obs = np.stack([batch.reset_env(i, s)[0] for i, s in enumerate(seeds)])
+    single_obs = [env.reset(seed=s)[0] for env, s in zip(singles, seeds)]
+    rng = np.random.default_rng(0)
+    for step in range(30):
+        actions = np.stack([expert(o) for o in obs]) + rng.normal(0, 0.3, (3, 2, 4))
+        result = batch.step_all(actions)
+        for i, env in enumerate(singles):
+            one = env.step(actions[i])
+            assert np.array_equal(result.obs[i], one.obs)
+            assert np.array_equal(result.reward[i], one.reward)
+            assert result.terminated[i] == one.terminated and result.truncated[i] == one.truncated
+            for name, term in one.info["reward_terms"].items():
+                assert np.array_equal(result.info["reward_terms"][name][i], term)
+            if one.terminated or one.truncated:
+                seed = 100 * step + i
+                result.obs[i] = batch.reset_env(i, seed)[0]
+                assert np.array_equal(result.obs[i], env.reset(seed=seed)[0])
+        obs = result.obs
+    with pytest.raises(ValueError, match="shape"):
+        batch.step_all(np.zeros((2, 2, 4)))
+    bad = np.zeros((3, 2, 4))
+    bad[2, 1, 0] = np.nan
+    with pytest.raises(ValueError, match="right arm in env 2"):
+        batch.step_all(bad)

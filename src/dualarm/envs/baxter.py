@@ -148,22 +148,38 @@ class _Indices:
                            else None)
 
 
-class BaxterReachGraspAlign:
-    """Baxter reach-grasp-align with both arms: reset, step, render.
+def _one_info(info: dict, i: int) -> dict:
+    """Copy ``i``'s entries of a batched info dict (flags as Python bools)."""
+    return {"is_success": bool(info["is_success"][i]), "subtask": info["subtask"][i],
+            "reached": info["reached"][i], "grasped": info["grasped"][i],
+            "aligned": info["aligned"][i],
+            "reward_terms": {k: v[i] for k, v in info["reward_terms"].items()},
+            "physics_error": bool(info["physics_error"][i])}
+
+
+class BaxterBatch:
+    """``num_envs`` independent copies of the task, stepped together (leading axis: env).
+
+    The physics of each copy runs in its own ``MjData``; everything else (sub-task
+    states, rewards, observations) is computed for all copies at once, so the Python cost
+    per environment step falls with the batch size (``benchmarks/env_speed.py``).
 
     Args:
         config: the task configuration.
         constraints: the joint-angle constraints of the guide term; required for the
-            "single" and "multi" conditions, ignored (must be None) for "none".
+            "single" and "multi" conditions, must be None for "none".
+        num_envs: number of copies.
         render_size: (height, width) of rendered frames in pixels.
 
-    Actions are (2, 4) in cartesian mode (dx, dy, dz, grip) and (2, 8) in joint mode
-    (7 joint deltas, grip), rows left, right, each in [-1, 1]; values outside are
-    clipped. grip -1 opens the fingers fully, +1 closes them (a position target).
+    Actions are (num_envs, 2, 4) in cartesian mode (dx, dy, dz, grip) and (num_envs, 2, 8)
+    in joint mode (7 joint deltas, grip), arms in the order left, right, each value in
+    [-1, 1]; values outside are clipped. grip -1 opens the fingers fully, +1 closes them.
     """
 
     def __init__(self, config: TaskConfig = TaskConfig(), constraints: ConstraintSet | None = None,
-                 render_size: tuple[int, int] = (480, 640)):
+                 num_envs: int = 1, render_size: tuple[int, int] = (480, 640)):
+        if num_envs < 1:
+            raise ValueError(f"num_envs must be at least 1, got {num_envs}")
         self.config = config
         if config.condition == "none":
             if constraints is not None:
@@ -174,8 +190,9 @@ class BaxterReachGraspAlign:
             raise ValueError(f"condition 'single' needs a one-segment ConstraintSet, "
                              f"got {len(constraints.segments)} segments")
         self.constraints = constraints
+        self.num_envs = num_envs
         self.model = compiled_model(config.scene, False, config.control)
-        self.data = mujoco.MjData(self.model)
+        self.datas = [mujoco.MjData(self.model) for _ in range(num_envs)]
         self.ix = _Indices(self.model)
         self.cartesian = config.control == "cartesian"
         self.action_size = 4 if self.cartesian else 8
@@ -200,10 +217,285 @@ class BaxterReachGraspAlign:
         self._instability = [int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS,
                                                mujoco.mjtWarning.mjWARN_BADQVEL,
                                                mujoco.mjtWarning.mjWARN_BADQACC)]
-        self.rng = np.random.default_rng()
-        self._needs_reset = True
+        n = num_envs
+        self.rngs = [np.random.default_rng() for _ in range(n)]
+        self.target_pos = np.zeros((n, 2, 3))       # each arm's target, m
+        self.box_start_pos = np.zeros((n, 2, 3))    # each box's start position, m
+        self.step_count = np.zeros(n, dtype=np.int64)
+        self.reached_once = np.zeros((n, 2), dtype=bool)
+        self.grasped_once = np.zeros((n, 2), dtype=bool)
+        self.success_paid = np.zeros(n, dtype=bool)
+        self.grip_pos = np.zeros((n, 2, 3))         # grip sites after the last step, m
+        self.joint_command = np.zeros((n, 2, 7))    # joint mode: servo targets, rad
+        self.needs_reset = np.ones(n, dtype=bool)
+        self._qpos = np.zeros((n, 2, 16))
+        self._qvel = np.zeros((n, 2, 8))
 
     # ------------------------------------------------------------------ reset
+    def reset_env(self, i: int, seed: int | None = None) -> tuple[np.ndarray, dict]:
+        """Start an episode in copy ``i``: arms at home, fingers open, boxes and targets at random.
+
+        Args:
+            i: which copy.
+            seed: seeds the episode's random placement (None: continue the copy's stream).
+
+        Returns:
+            (obs (2, obs_size), info) of that copy, as after a step with no reward.
+        """
+        if seed is not None:
+            self.rngs[i] = np.random.default_rng(seed)
+        c, m, d, ix = self.config, self.model, self.datas[i], self.ix
+        mujoco.mj_resetData(m, d)
+        d.qpos[ix.arm_qpos] = self.home
+        d.qpos[ix.finger_qpos] = FINGER_OPEN
+        d.ctrl[ix.finger_ctrl] = FINGER_OPEN
+        if not self.cartesian:
+            d.ctrl[ix.arm_ctrl] = self.home
+        self.joint_command[i] = self.home
+
+        r = self.rngs[i]
+        box_x = r.uniform(*c.box_x_range, size=2)
+        box_y = r.uniform(*c.box_y_range, size=2) * np.array([1.0, -1.0])
+        self.box_start_pos[i] = np.stack([box_x, box_y, np.full(2, self.box_rest_z)], axis=1)
+        d.qpos[ix.box_pos] = self.box_start_pos[i]
+        d.qpos[ix.box_quat] = [1.0, 0.0, 0.0, 0.0]
+        tx = r.uniform(*c.target_x_range)
+        ty = r.uniform(*c.target_center_y_range)
+        tz = self.box_rest_z + r.uniform(*c.target_height_range)
+        s = c.target_half_separation
+        self.target_pos[i] = [[tx, ty + s, tz], [tx, ty - s, tz]]
+        d.mocap_pos[ix.target_mocap] = self.target_pos[i]
+        mujoco.mj_kinematics(m, d)
+        if self.cartesian:
+            d.mocap_pos[ix.hand_mocap] = d.site_xpos[ix.grip_site]
+            d.mocap_quat[ix.hand_mocap] = GRIP_DOWN_QUAT
+        mujoco.mj_forward(m, d)
+
+        self.step_count[i] = 0
+        self.reached_once[i] = False
+        self.grasped_once[i] = False
+        self.success_paid[i] = False
+        self.grip_pos[i] = d.site_xpos[ix.grip_site]
+        self._qpos[i] = d.qpos[ix.qpos_gather]
+        self._qvel[i] = d.qvel[ix.qvel_gather]
+        self.needs_reset[i] = False
+        state = self._evaluate(self.grip_pos[i:i + 1], self._qpos[i:i + 1], self.target_pos[i:i + 1])
+        obs = self._observe(state, self._qvel[i:i + 1], np.zeros((1, 2, 3)), self.target_pos[i:i + 1])
+        zeros = {k: np.zeros((1, 2)) for k in ("distance", "guide", "goal", "coordinate")}
+        return obs[0], _one_info(self._info(state, zeros, np.zeros(1, dtype=bool)), 0)
+
+    # ------------------------------------------------------------------- step
+    def check_actions(self, action) -> np.ndarray:
+        """Validate and clip actions to (num_envs, 2, action_size) in [-1, 1].
+
+        Raises:
+            ValueError: wrong shape, or a NaN/inf value (naming the arm and the index).
+        """
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (self.num_envs, 2, self.action_size):
+            raise ValueError(f"actions must have shape ({self.num_envs}, 2, {self.action_size}) "
+                             f"(envs, arms left/right, {', '.join(self.action_names())}), "
+                             f"got {a.shape}")
+        if not math.isfinite(a.sum()):  # cheap test first: NaN and inf propagate through the sum
+            bad = np.argwhere(~np.isfinite(a))
+            if len(bad):               # (a sum of huge finite values can overflow: those clip)
+                env, arm, index = bad[0]
+                where = f" in env {env}" if self.num_envs > 1 else ""
+                raise ValueError(f"action of the {ARMS[arm]} arm{where} has a non-finite value "
+                                 f"{a[env, arm, index]} at index {index} "
+                                 f"({self.action_names()[index]})")
+        return np.minimum(np.maximum(a, -1.0), 1.0)
+
+    def action_names(self) -> tuple[str, ...]:
+        """Names of one arm's action components."""
+        if self.cartesian:
+            return ("dx", "dy", "dz", "grip")
+        return tuple(f"d{j}" for j in BAXTER_JOINT_NAMES) + ("grip",)
+
+    def step_all(self, actions) -> StepResult:
+        """Advance every copy one control step (``config.substeps`` physics steps each).
+
+        Args:
+            actions: (num_envs, 2, action_size) in [-1, 1] (clipped).
+
+        Returns:
+            A ``StepResult`` whose fields have a leading env axis: obs (n, 2, obs_size),
+            reward (n, 2), terminated and truncated (n,) bool arrays, info values (n, ...).
+            Copies that end must be ``reset_env`` before the next ``step_all``.
+        """
+        if self.needs_reset.any():
+            raise RuntimeError(f"reset env {int(np.argmax(self.needs_reset))} before stepping "
+                               "(its episode has ended or not begun)")
+        a = self.check_actions(actions)
+        c, m, ix = self.config, self.model, self.ix
+        previous_grip = self.grip_pos
+        fingers = FINGER_OPEN + (0.5 * (a[..., -1:] + 1.0)) * _FINGER_TRAVEL        # (n, 2, 2)
+        if self.cartesian:
+            commands = np.minimum(np.maximum(previous_grip + c.max_cartesian_step * a[..., :3],
+                                             self._workspace_low), self._workspace_high)
+        else:
+            commands = np.minimum(np.maximum(self.joint_command + c.max_joint_step * a[..., :7],
+                                             self._lower), self._upper)
+            self.joint_command = commands
+        physics_error = np.zeros(self.num_envs, dtype=bool)
+        grip = np.empty_like(previous_grip)
+        for i, d in enumerate(self.datas):   # the only per-copy work: set, step, read
+            if self.cartesian:
+                d.mocap_pos[ix.hand_mocap] = commands[i]
+            else:
+                d.ctrl[ix.arm_ctrl] = commands[i]
+            d.ctrl[ix.finger_ctrl] = fingers[i]
+            warnings_before = self._instability_warnings(d)
+            mujoco.mj_step(m, d, nstep=c.substeps)
+            mujoco.mj_kinematics(m, d)  # site positions of the new state (mj_step leaves the old)
+            # MuJoCo resets the state itself after a bad qpos/qvel/qacc and warns: count them.
+            physics_error[i] = self._instability_warnings(d) != warnings_before
+            self._qpos[i] = d.qpos[ix.qpos_gather]
+            self._qvel[i] = d.qvel[ix.qvel_gather]
+            grip[i] = d.site_xpos[ix.grip_site]
+        if not math.isfinite(self._qpos.sum() + grip.sum()):
+            physics_error |= ~np.isfinite(self._qpos).all(axis=(1, 2)) | ~np.isfinite(grip).all(axis=(1, 2))
+        self.step_count += 1
+        self.grip_pos = grip
+        grip_vel = (grip - previous_grip) * (1.0 / c.control_period)
+        state = self._evaluate(grip, self._qpos, self.target_pos)
+        obs = self._observe(state, self._qvel, grip_vel, self.target_pos)
+        terms = self._reward_terms(state)
+        reward = terms["distance"] + terms["guide"] + terms["goal"] + terms["coordinate"]
+        if physics_error.any():
+            obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
+            reward = np.nan_to_num(reward, nan=0.0)
+            terms = {k: np.nan_to_num(v, nan=0.0) for k, v in terms.items()}
+        terminated = physics_error | (state["success"] & c.terminate_on_success)
+        truncated = ~terminated & (self.step_count >= c.max_episode_steps)
+        self.needs_reset |= terminated | truncated
+        return StepResult(obs, reward, terminated, truncated, self._info(state, terms, physics_error))
+
+    # -------------------------------------------------------------- internals
+    def _instability_warnings(self, d: mujoco.MjData) -> int:
+        """How many times MuJoCo has found a bad qpos, qvel or qacc (and reset the state)."""
+        w = d.warning
+        return w[self._instability[0]].number + w[self._instability[1]].number \
+            + w[self._instability[2]].number
+
+    def _evaluate(self, grip: np.ndarray, qpos: np.ndarray, targets: np.ndarray) -> dict:
+        """Sub-task predicates (n, 2) from grip sites (n, 2, 3) and gathered qpos (n, 2, 16)."""
+        c = self.config
+        box = qpos[..., 9:12]
+        rel = box - grip
+        to_box = np.sqrt((rel * rel).sum(axis=-1))
+        gap = _GAP_AT_ZERO + qpos[..., 8] - qpos[..., 7]
+        grasped = (to_box < c.grasp_tolerance) & (gap <= self._closed_gap) & (box[..., 2] > self._lifted_z)
+        reached = grasped | (to_box < c.reach_threshold)
+        off = box - targets
+        aligned = grasped & ((off * off).sum(axis=-1) < self._align_sq)
+        subtask = reached.astype(np.int64) + grasped
+        return {"grip": grip, "qpos": qpos, "rel": rel, "targets": targets, "reached": reached,
+                "grasped": grasped, "aligned": aligned, "subtask": subtask,
+                "success": aligned[:, 0] & aligned[:, 1]}
+
+    def _reward_terms(self, state: dict) -> dict[str, np.ndarray]:
+        """Eq. 16-18 terms, each (n, 2): distance, guide, goal (rg1/rg2) and coordinate (rc)."""
+        c = self.config
+        subtask = state["subtask"]
+        to_target = state["targets"] - state["grip"]
+        if self._goal_is_subtask:
+            to_goal = np.where((subtask == 2)[..., None], to_target, state["rel"])
+        else:
+            to_goal = to_target
+        distance = -np.sqrt((to_goal * to_goal).sum(axis=-1))
+        if self.constraints is not None:
+            q = state["qpos"][..., :7].reshape(-1, 14)
+            guide = self.constraints.guide_reward(q, subtask[:, 0], subtask[:, 1], self._c0)
+        else:
+            guide = np.zeros_like(distance)
+        new_reach = state["reached"] & ~self.reached_once
+        new_grasp = state["grasped"] & ~self.grasped_once
+        self.reached_once |= state["reached"]
+        self.grasped_once |= state["grasped"]
+        goal_bonus = c.reach_bonus * new_reach + c.grasp_bonus * new_grasp
+        pay = state["success"] & ~self.success_paid
+        self.success_paid |= pay
+        coordinate = np.repeat(np.where(pay, c.coordinate_bonus, 0.0)[:, None], 2, axis=1)
+        return {"distance": distance, "guide": guide, "goal": goal_bonus, "coordinate": coordinate}
+
+    def _observe(self, state: dict, qvel: np.ndarray, grip_vel: np.ndarray,
+                 targets: np.ndarray) -> np.ndarray:
+        """Observations (n, 2, obs_size) in the order of ``OBS_LAYOUT``."""
+        qpos = state["qpos"]
+        quat = qpos[..., 12:16]
+        if (quat[..., 0] < 0).any():                            # one sign per orientation
+            quat = quat * np.where(quat[..., :1] < 0, -1.0, 1.0)
+        parts = [state["grip"], qpos[..., :7], qpos[..., 9:12], state["rel"], qpos[..., 7:9], quat,
+                 qvel[..., :6], grip_vel, qvel[..., 6:8], targets]
+        if not self._observe_joints:
+            del parts[1]
+        return np.concatenate(parts, axis=-1)
+
+    @staticmethod
+    def _info(state: dict, terms: dict, physics_error: np.ndarray) -> dict:
+        return {"is_success": state["success"], "subtask": state["subtask"],
+                "reached": state["reached"], "grasped": state["grasped"],
+                "aligned": state["aligned"], "reward_terms": terms,
+                "physics_error": physics_error}
+
+    # ----------------------------------------------------------------- render
+    def render_env(self, i: int = 0, camera: str = "front") -> np.ndarray:
+        """An RGB frame (height, width, 3) uint8 of copy ``i`` from a scene camera."""
+        if self._renderer is None:
+            from dualarm.envs.rendering import SceneRenderer
+            self._renderer = SceneRenderer(self.config.scene, self.config.control, *self.render_size)
+        return self._renderer.render(self.datas[i], camera)
+
+    def close(self) -> None:
+        """Free the renderer's GL context, if any."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+
+class BaxterReachGraspAlign(BaxterBatch):
+    """One copy of the task, arrays without the env axis: obs (2, obs_size), action (2, A).
+
+    Args:
+        config: the task configuration.
+        constraints: the joint-angle constraints of the guide term ("single"/"multi").
+        render_size: (height, width) of rendered frames in pixels.
+    """
+
+    def __init__(self, config: TaskConfig = TaskConfig(), constraints: ConstraintSet | None = None,
+                 render_size: tuple[int, int] = (480, 640)):
+        super().__init__(config, constraints, 1, render_size)
+
+    @property
+    def data(self) -> mujoco.MjData:
+        """The copy's MuJoCo state."""
+        return self.datas[0]
+
+    @property
+    def rng(self) -> np.random.Generator:
+        """Random stream of the placements."""
+        return self.rngs[0]
+
+    @rng.setter
+    def rng(self, generator: np.random.Generator) -> None:
+        self.rngs[0] = generator
+
+    @property
+    def targets(self) -> np.ndarray:
+        """(2, 3) targets of the left and right arm, m."""
+        return self.target_pos[0]
+
+    @property
+    def box_start(self) -> np.ndarray:
+        """(2, 3) start positions of the left and right box, m."""
+        return self.box_start_pos[0]
+
+    @property
+    def steps(self) -> int:
+        """Steps taken in the current episode."""
+        return int(self.step_count[0])
+
     def reset(self, seed: int | None = None) -> tuple[np.ndarray, dict]:
         """Start an episode: arms at home, fingers open, boxes and targets drawn at random.
 
@@ -213,203 +505,34 @@ class BaxterReachGraspAlign:
         Returns:
             (obs (2, obs_size), info) as after a step with no reward.
         """
-        if seed is not None:
-            self.rng = np.random.default_rng(seed)
-        c, m, d, ix = self.config, self.model, self.data, self.ix
-        mujoco.mj_resetData(m, d)
-        d.qpos[ix.arm_qpos] = self.home
-        d.qpos[ix.finger_qpos] = FINGER_OPEN
-        d.ctrl[ix.finger_ctrl] = FINGER_OPEN
-        if not self.cartesian:
-            d.ctrl[ix.arm_ctrl] = self.home
-        self._joint_command = self.home.copy()
+        return self.reset_env(0, seed)
 
-        r = self.rng
-        box_x = r.uniform(*c.box_x_range, size=2)
-        box_y = r.uniform(*c.box_y_range, size=2) * np.array([1.0, -1.0])
-        self.box_start = np.stack([box_x, box_y, np.full(2, self.box_rest_z)], axis=1)
-        d.qpos[ix.box_pos] = self.box_start
-        d.qpos[ix.box_quat] = [1.0, 0.0, 0.0, 0.0]
-        tx = r.uniform(*c.target_x_range)
-        ty = r.uniform(*c.target_center_y_range)
-        tz = self.box_rest_z + r.uniform(*c.target_height_range)
-        s = c.target_half_separation
-        self.targets = np.array([[tx, ty + s, tz], [tx, ty - s, tz]])
-        d.mocap_pos[ix.target_mocap] = self.targets
-        mujoco.mj_kinematics(m, d)
-        if self.cartesian:
-            d.mocap_pos[ix.hand_mocap] = d.site_xpos[ix.grip_site]
-            d.mocap_quat[ix.hand_mocap] = GRIP_DOWN_QUAT
-        mujoco.mj_forward(m, d)
-
-        self.steps = 0
-        self.reached_once = np.zeros(2, dtype=bool)
-        self.grasped_once = np.zeros(2, dtype=bool)
-        self.success_paid = False
-        self._prev_grip = d.site_xpos[ix.grip_site]
-        self._needs_reset = False
-        state = self._evaluate(self._prev_grip)
-        obs = self._observe(state, np.zeros((2, 3)))
-        info = self._info(state, {k: np.zeros(2) for k in ("distance", "guide", "goal", "coordinate")},
-                          False)
-        return obs, info
-
-    # ------------------------------------------------------------------- step
     def check_action(self, action) -> np.ndarray:
-        """Validate and clip an action to (2, action_size) in [-1, 1].
+        """Validate and clip an action to (2, action_size) in [-1, 1] (ValueError names the arm)."""
+        return self.check_actions(self._one_action(action)[None])[0]
 
-        Raises:
-            ValueError: wrong shape, or a NaN/inf value (naming the arm and the index).
-        """
+    def _one_action(self, action) -> np.ndarray:
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (2, self.action_size):
             raise ValueError(f"action must have shape (2, {self.action_size}) (rows left, right; "
                              f"columns {', '.join(self.action_names())}), got {a.shape}")
-        if not math.isfinite(a.sum()):  # cheap test first: NaN and inf propagate through the sum
-            bad = np.argwhere(~np.isfinite(a))
-            if len(bad):               # (a sum of huge finite values can overflow: those clip)
-                arm, index = bad[0]
-                raise ValueError(f"action of the {ARMS[arm]} arm has a non-finite value "
-                                 f"{a[arm, index]} at index {index} ({self.action_names()[index]})")
-        return np.minimum(np.maximum(a, -1.0), 1.0)
-
-    def action_names(self) -> tuple[str, ...]:
-        """Names of one arm's action components."""
-        if self.cartesian:
-            return ("dx", "dy", "dz", "grip")
-        return tuple(f"d{j}" for j in BAXTER_JOINT_NAMES) + ("grip",)
+        return a
 
     def step(self, action) -> StepResult:
-        """Advance one control step (``config.substeps`` physics steps).
-
-        Args:
-            action: (2, action_size) in [-1, 1] (clipped), rows left, right.
-        """
-        if self._needs_reset:
+        """Advance one control step; ``action`` is (2, action_size) in [-1, 1] (clipped)."""
+        if self.needs_reset[0]:
             raise RuntimeError("call reset() before step() (the episode has ended or not begun)")
-        a = self.check_action(action)
-        c, m, d, ix = self.config, self.model, self.data, self.ix
-        grip = self._prev_grip
-        if self.cartesian:
-            target = grip + c.max_cartesian_step * a[:, :3]
-            d.mocap_pos[ix.hand_mocap] = np.minimum(np.maximum(target, self._workspace_low),
-                                                    self._workspace_high)
-        else:
-            command = self._joint_command + c.max_joint_step * a[:, :7]
-            self._joint_command = np.minimum(np.maximum(command, self._lower), self._upper)
-            d.ctrl[ix.arm_ctrl] = self._joint_command
-        d.ctrl[ix.finger_ctrl] = FINGER_OPEN + (0.5 * (a[:, -1:] + 1.0)) * _FINGER_TRAVEL
+        result = self.step_all(self._one_action(action)[None])
+        return StepResult(result.obs[0], result.reward[0], bool(result.terminated[0]),
+                          bool(result.truncated[0]), _one_info(result.info, 0))
 
-        warnings_before = self._instability_warnings()
-        mujoco.mj_step(m, d, nstep=c.substeps)
-        mujoco.mj_kinematics(m, d)  # site positions of the new state (mj_step leaves the old)
-        self.steps += 1
-        # MuJoCo resets the state itself after a bad qpos/qvel/qacc and warns: count them.
-        physics_error = (self._instability_warnings() != warnings_before
-                         or not math.isfinite(d.qpos.sum()))
-
-        new_grip = d.site_xpos[ix.grip_site]
-        grip_vel = (new_grip - grip) * (1.0 / c.control_period)
-        self._prev_grip = new_grip
-        state = self._evaluate(new_grip)
-        obs = self._observe(state, grip_vel)
-        terms = self._reward_terms(state)
-        reward = terms["distance"] + terms["guide"] + terms["goal"] + terms["coordinate"]
-        if physics_error:
-            obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
-            reward = np.nan_to_num(reward, nan=0.0)
-            terms = {k: np.nan_to_num(v, nan=0.0) for k, v in terms.items()}
-        terminated = physics_error or (state["success"] and c.terminate_on_success)
-        truncated = (not terminated) and self.steps >= c.max_episode_steps
-        if terminated or truncated:
-            self._needs_reset = True
-        return StepResult(obs, reward, terminated, truncated, self._info(state, terms, physics_error))
-
-    # -------------------------------------------------------------- internals
-    def _instability_warnings(self) -> int:
-        """How many times MuJoCo has found a bad qpos, qvel or qacc (and reset the state)."""
-        w = self.data.warning
-        return w[self._instability[0]].number + w[self._instability[1]].number \
-            + w[self._instability[2]].number
-
-    def _evaluate(self, grip: np.ndarray) -> dict:
-        """Sub-task predicates of both arms from the current state (one gather of qpos)."""
-        c, d = self.config, self.data
-        qpos = d.qpos[self.ix.qpos_gather]                    # (2, 16)
-        box = qpos[:, 9:12]
-        rel = box - grip
-        to_box = np.sqrt((rel * rel).sum(axis=1))
-        gap = _GAP_AT_ZERO + qpos[:, 8] - qpos[:, 7]
-        grasped = (to_box < c.grasp_tolerance) & (gap <= self._closed_gap) & (box[:, 2] > self._lifted_z)
-        reached = grasped | (to_box < c.reach_threshold)
-        off = box - self.targets
-        aligned = grasped & ((off * off).sum(axis=1) < self._align_sq)
-        subtask = reached.astype(np.int64) + grasped
-        return {"grip": grip, "qpos": qpos, "rel": rel, "reached": reached, "grasped": grasped,
-                "aligned": aligned, "subtask": subtask, "success": bool(aligned[0] and aligned[1])}
-
-    def _reward_terms(self, state: dict) -> dict[str, np.ndarray]:
-        """Eq. 16-18 terms, each (2,): distance, guide, goal (rg1/rg2) and coordinate (rc)."""
-        c = self.config
-        subtask = state["subtask"]
-        if self._goal_is_subtask:
-            to_goal = np.where((subtask == 2)[:, None], self.targets - state["grip"], state["rel"])
-        else:
-            to_goal = self.targets - state["grip"]
-        distance = -np.sqrt((to_goal * to_goal).sum(axis=1))
-        if self.constraints is not None:
-            guide = self.constraints.guide_reward(state["qpos"][:, :7].reshape(14),
-                                                  int(subtask[0]), int(subtask[1]), self._c0)
-        else:
-            guide = np.zeros(2)
-        new_reach = state["reached"] & ~self.reached_once
-        new_grasp = state["grasped"] & ~self.grasped_once
-        self.reached_once |= state["reached"]
-        self.grasped_once |= state["grasped"]
-        goal_bonus = c.reach_bonus * new_reach + c.grasp_bonus * new_grasp
-        if state["success"] and not self.success_paid:
-            self.success_paid = True
-            coordinate = np.full(2, c.coordinate_bonus)
-        else:
-            coordinate = np.zeros(2)
-        return {"distance": distance, "guide": guide, "goal": goal_bonus, "coordinate": coordinate}
-
-    def _observe(self, state: dict, grip_vel: np.ndarray) -> np.ndarray:
-        """Observations (2, obs_size) in the order of ``OBS_LAYOUT``."""
-        qpos = state["qpos"]
-        qvel = self.data.qvel[self.ix.qvel_gather]             # (2, 8)
-        quat = qpos[:, 12:16]
-        if quat[0, 0] < 0 or quat[1, 0] < 0:                   # one sign per orientation
-            quat = quat * np.where(quat[:, :1] < 0, -1.0, 1.0)
-        parts = [state["grip"], qpos[:, :7], qpos[:, 9:12], state["rel"], qpos[:, 7:9], quat,
-                 qvel[:, :6], grip_vel, qvel[:, 6:8], self.targets]
-        if not self._observe_joints:
-            del parts[1]
-        return np.concatenate(parts, axis=1)
-
-    def _info(self, state: dict, terms: dict, physics_error: bool) -> dict:
-        return {"is_success": state["success"], "subtask": state["subtask"],
-                "reached": state["reached"], "grasped": state["grasped"],
-                "aligned": state["aligned"], "reward_terms": terms,
-                "physics_error": physics_error}
-
-    # ----------------------------------------------------------------- render
     def render(self, camera: str = "front") -> np.ndarray:
         """An RGB frame (height, width, 3) uint8 of the current state from a scene camera."""
-        if self._renderer is None:
-            from dualarm.envs.rendering import SceneRenderer
-            self._renderer = SceneRenderer(self.config.scene, self.config.control, *self.render_size)
-        return self._renderer.render(self.data, camera)
+        return self.render_env(0, camera)
 
     def joint_angles(self) -> np.ndarray:
         """Current Baxter joint angles (14,) rad, left s0..w2 then right s0..w2."""
         return self.data.qpos[self.ix.arm_qpos].reshape(14).copy()
-
-    def close(self) -> None:
-        """Free the renderer's GL context, if any."""
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
 
 
 SUBTASK_NAMES = SUBTASKS
