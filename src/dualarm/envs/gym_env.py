@@ -11,11 +11,11 @@ from __future__ import annotations
 import gymnasium
 import numpy as np
 
-from dualarm.envs import make_core
+from dualarm.envs import CoreView
 from dualarm.envs.config import TaskConfig
 
 
-class BaxterReachGraspAlignEnv(gymnasium.Env):
+class BaxterReachGraspAlignEnv(CoreView, gymnasium.Env):
     """Gymnasium view of the dual-arm task.
 
     Args:
@@ -29,10 +29,7 @@ class BaxterReachGraspAlignEnv(gymnasium.Env):
 
     def __init__(self, render_mode: str | None = None, config: TaskConfig | None = None,
                  constraints=None, **overrides):
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        self.core = make_core(config, constraints, **overrides)
-        self.render_mode = render_mode
+        self._attach_core(render_mode, config, constraints, overrides)
         self.metadata = {**self.metadata, "render_fps": round(1.0 / self.core.config.control_period)}
         n, a = self.core.obs_size, self.core.action_size
         self.observation_space = gymnasium.spaces.Box(-np.inf, np.inf, (2 * n,), np.float64)
@@ -60,11 +57,3 @@ class BaxterReachGraspAlignEnv(gymnasium.Env):
         info = dict(info)
         info["rewards"] = {"left": float(reward[0]), "right": float(reward[1])}
         return info
-
-    def render(self):
-        if self.render_mode == "rgb_array":
-            return self.core.render()
-        return None
-
-    def close(self):
-        self.core.close()

@@ -13,12 +13,12 @@ import gymnasium
 import numpy as np
 from pettingzoo import ParallelEnv
 
-from dualarm.envs import make_core
+from dualarm.envs import CoreView
 from dualarm.envs.config import TaskConfig
 from dualarm.kinematics import ARMS
 
 
-class BaxterParallelEnv(ParallelEnv):
+class BaxterParallelEnv(CoreView, ParallelEnv):
     """Two agents, one per Baxter arm.
 
     Args:
@@ -33,10 +33,7 @@ class BaxterParallelEnv(ParallelEnv):
 
     def __init__(self, render_mode: str | None = None, config: TaskConfig | None = None,
                  constraints=None, **overrides):
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        self.core = make_core(config, constraints, **overrides)
-        self.render_mode = render_mode
+        self._attach_core(render_mode, config, constraints, overrides)
         self.possible_agents = list(ARMS)
         self.agents = []
         self._obs_space = gymnasium.spaces.Box(-np.inf, np.inf, (self.core.obs_size,), np.float64)
@@ -106,11 +103,3 @@ class BaxterParallelEnv(ParallelEnv):
                           "grasped": bool(info["grasped"][i]), "aligned": bool(info["aligned"][i]),
                           "reward_terms": {k: float(v[i]) for k, v in info["reward_terms"].items()}}
         return out
-
-    def render(self):
-        if self.render_mode == "rgb_array":
-            return self.core.render()
-        return None
-
-    def close(self):
-        self.core.close()
