@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import math
 import numbers
 import os
-import secrets
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -15,6 +13,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from dualarm.atomic import atomic_open
 from dualarm.errors import InputError
 from dualarm.kinematics import ARMS, BAXTER_JOINT_LIMITS, BAXTER_JOINT_NAMES
 
@@ -515,24 +514,12 @@ class ConstraintSet:
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the set as YAML (``to_dict`` layout, floats at repr precision) atomically:
-        a temporary file in the same folder, then ``os.replace``."""
+        a temporary file in the same folder, then a rename (``dualarm.atomic``)."""
         path = Path(path)
         text = "# Joint-angle constraint set (dualarm.constraints); angles in rad.\n" + yaml.safe_dump(
             self.to_dict(), sort_keys=False, default_flow_style=None, width=4096, allow_unicode=True)
-        tmp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.tmp")
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as f:
-                f.write(text)
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            try:
-                os.unlink(tmp)
-            except FileNotFoundError:
-                pass
-            raise
+        with atomic_open(path) as out:
+            out.write(text.encode("utf-8"))
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> ConstraintSet:

@@ -13,6 +13,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from dualarm.atomic import atomic_path
 from dualarm.envs.scene import SceneConfig, compiled_model
 from dualarm.errors import DualarmError
 
@@ -90,16 +91,10 @@ def write_video(path: str | Path, frames: list[np.ndarray], fps: float) -> Path:
     suffix = path.suffix.lower()
     if suffix not in (".mp4", ".gif"):
         raise ValueError(f"{path}: video must end in .mp4 or .gif")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{suffix}")
-    try:
+    with atomic_path(path) as tmp:
         if suffix == ".mp4":
             iio.imwrite(tmp, np.stack(frames), fps=fps, codec="libx264", macro_block_size=8,
                         plugin="FFMPEG")
         else:
             iio.imwrite(tmp, np.stack(frames), duration=1000.0 / fps, loop=0)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return path

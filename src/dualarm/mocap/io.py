@@ -6,13 +6,13 @@ import csv
 import gzip
 import io
 import os
-import secrets
 from collections.abc import Callable, Iterable, Mapping
 from itertools import repeat
 from pathlib import Path
 
 import numpy as np
 
+from dualarm.atomic import atomic_open
 from dualarm.errors import InputError
 from dualarm.mocap.recording import ARMS, SEGMENTS, SENSORS, Recording, sensor_name
 
@@ -437,10 +437,8 @@ def _atomic_write(path: str | os.PathLike, head: str, rowfmt: str, data: np.ndar
     """Write ``head`` then each row of ``data`` through ``rowfmt`` to a temporary file
     beside ``path``, then rename it onto ``path``: a crash never leaves half a file."""
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.tmp")
     try:
-        # os.open with 0o666 honours the umask (mkstemp would leave the file 0600).
-        with open(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), "wb") as raw:
+        with atomic_open(path) as raw:
             out = gzip.GzipFile(fileobj=raw, mode="wb", mtime=0) if path.name.lower().endswith(".gz") else raw
             out.write(head.encode())
             for i in range(0, data.shape[0], _CHUNK_ROWS):
@@ -449,12 +447,5 @@ def _atomic_write(path: str | os.PathLike, head: str, rowfmt: str, data: np.ndar
                 out.write(((rowfmt * chunk.shape[0]) % tuple(chunk.ravel().tolist())).encode())
             if out is not raw:
                 out.close()  # writes the gzip trailer; leaves raw open
-            raw.flush()
-            os.fsync(raw.fileno())
-        os.replace(tmp, path)
     except OSError as e:
-        tmp.unlink(missing_ok=True)
         raise InputError(f"cannot write file ({type(e).__name__}: {e.strerror or e})", source=str(path)) from None
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise

@@ -5,13 +5,12 @@ directly (no ``pyplot`` global state), so it works under the Agg backend, in tes
 and in worker processes. Angles are radians in code and degrees on the axes; times
 are seconds; lengths metres. Every figure is written as a PNG at ``DPI`` dots per
 inch, atomically: to a temporary file in the target directory with the same suffix,
-then :func:`os.replace`, so a reader never sees a half-written file.
+then a rename (:mod:`dualarm.atomic`), so a reader never sees a half-written file.
 """
 
 from __future__ import annotations
 
 import os
-import secrets
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -20,6 +19,7 @@ from matplotlib.figure import Figure
 import mpl_toolkits.mplot3d  # noqa: F401  (registers the '3d' projection)
 import numpy as np
 
+from dualarm.atomic import atomic_open
 from dualarm.kinematics import (ARMS, BAXTER_JOINT_NAMES, DEFAULT_HUMAN_LENGTHS, JOINT_NAMES,
                                 ArmModel, baxter_arm, human_arm)
 from dualarm.mocap.joint_angles import RESIDUAL_COLUMNS
@@ -46,18 +46,9 @@ def save_figure(fig: Figure, path: str | os.PathLike) -> Path:
         ``path`` as a :class:`~pathlib.Path`.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     fmt = path.suffix.lstrip(".").lower() or "png"
-    tmp = path.parent / f".{path.stem}.{os.getpid()}.{secrets.token_hex(4)}{path.suffix}"
-    # os.open with 0o666 (not mkstemp's 0o600) so the file gets the usual umask permissions.
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, dpi=DPI, format=fmt)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    with atomic_open(path) as out:
+        fig.savefig(out, dpi=DPI, format=fmt)
     return path
 
 

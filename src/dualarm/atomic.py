@@ -1,0 +1,43 @@
+"""Atomic file writes: a temporary file beside the target, then a rename onto it.
+
+A reader (or a run killed mid-write) never sees half a file: the target is either the old
+file or the complete new one. The temporary file keeps the target's suffix (writers that
+pick a format by extension see the right one), is created exclusively with mode 0o666 so
+the user's umask applies (``mkstemp`` would leave it 0600), and is removed on any failure.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import secrets
+from collections.abc import Iterator
+from pathlib import Path
+from typing import BinaryIO
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a fresh empty temporary path to write; on success it replaces ``path``.
+
+    The parent folder of ``path`` is created if missing.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.{secrets.token_hex(6)}.tmp{path.suffix}")
+    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+@contextlib.contextmanager
+def atomic_open(path: str | os.PathLike) -> Iterator[BinaryIO]:
+    """Yield a binary file to write; on success it is flushed to disk and replaces ``path``."""
+    with atomic_path(path) as tmp, open(tmp, "wb") as out:
+        yield out
+        out.flush()
+        os.fsync(out.fileno())
