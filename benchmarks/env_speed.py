@@ -148,10 +148,14 @@ class Case:
         self.physics_errors += errors
         return t_step, t_reset, t_policy
 
+    #: Recorded steps between one copy's consecutive steps (a batch records n per round).
+    stride = 1
+
     def run_physics(self, lo: int = 0, hi: int | None = None, check: bool = False) -> float:
-        """Replay the recorded steps ``lo`` to ``hi``; seconds in ``mj_step``."""
+        """Replay the recorded steps ``lo`` to ``hi``; seconds in ``mj_step``. ``check``
+        counts the steps whose result differs from the state the env reached."""
         hi = self.steps if hi is None else hi
-        m, d = self.model, self.replay
+        m, d, k = self.model, self.replay, self.stride
         nstep = self.config.substeps
         clock, set_state, step = time.perf_counter, mujoco.mj_setState, mujoco.mj_step
         total = 0.0
@@ -162,8 +166,8 @@ class Case:
             t0 = clock()
             step(m, d, nstep=nstep)
             total += clock() - t0
-            if check and i + 1 < hi and not self.first_of_episode[i + 1]:
-                mismatch += not np.array_equal(d.qpos, self.qpos[i + 1])
+            if check and i + k < hi and not self.first_of_episode[i + k]:
+                mismatch += not np.array_equal(d.qpos, self.qpos[i + k])
         if check:
             self.replay_mismatch = mismatch
         return total
@@ -235,7 +239,7 @@ class BatchCase(Case):
     the same measurements per environment step (env time, replayed physics)."""
 
     def __init__(self, num_envs: int, steps: int, seed: int):
-        self.num_envs = num_envs
+        self.num_envs = self.stride = num_envs
         self.rounds = max(1, steps // num_envs)
         super().__init__("cartesian", "random", self.rounds * num_envs, seed)
         self.env = BaxterBatch(self.config, num_envs=num_envs)
@@ -278,25 +282,6 @@ class BatchCase(Case):
                 get_state(m, d, self.commands[base + i], COMMAND)
             self.physics_errors += int(result.info["physics_error"].sum())
         return t_step, t_reset, t_policy
-
-    def run_physics(self, lo: int = 0, hi: int | None = None, check: bool = False) -> float:
-        """Replay the recorded (round, env) steps; the check compares each copy's next state."""
-        hi = self.steps if hi is None else hi
-        m, d, n = self.model, self.replay, self.num_envs
-        nstep = self.config.substeps
-        clock, set_state, step = time.perf_counter, mujoco.mj_setState, mujoco.mj_step
-        total, mismatch = 0.0, 0
-        for k in range(lo, hi):
-            set_state(m, d, self.states[k], STATE)
-            set_state(m, d, self.commands[k], COMMAND)
-            t0 = clock()
-            step(m, d, nstep=nstep)
-            total += clock() - t0
-            if check and k + n < hi and not self.first_of_episode[k + n]:
-                mismatch += not np.array_equal(d.qpos, self.qpos[k + n])
-        if check:
-            self.replay_mismatch = mismatch
-        return total
 
     def physics_inside_env(self, repeat: int, chunk: int) -> tuple[float, float, float]:
         return Case.physics_inside_env(self, repeat, self._chunk(chunk))

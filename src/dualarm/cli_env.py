@@ -10,15 +10,19 @@ import numpy as np
 
 
 def _environment(args: argparse.Namespace):
+    """The task core from the command's options (frame size too, for rendering commands)."""
     from dualarm.envs import make_core
 
-    return make_core(condition=args.condition, constraints=args.constraints, control=args.control)
+    env = make_core(condition=args.condition, constraints=args.constraints, control=args.control)
+    if hasattr(args, "height"):
+        env.render_size = (args.height, args.width)
+    return env
 
 
-def _progress(iterable, total: int, desc: str, quiet: bool = False):
+def _progress(iterable, total: int, desc: str):
     from tqdm import tqdm
 
-    return tqdm(iterable, total=total, desc=desc, unit="ep", disable=quiet, file=sys.stderr)
+    return tqdm(iterable, total=total, desc=desc, unit="ep", file=sys.stderr)
 
 
 def cmd_env_video(args: argparse.Namespace) -> int:
@@ -27,7 +31,6 @@ def cmd_env_video(args: argparse.Namespace) -> int:
     from dualarm.envs.rollout import make_policy, run_episode
 
     env = _environment(args)
-    env.render_size = (args.height, args.width)
     policy = make_policy(args.policy, env, args.seed)
     frames = []
     for k in _progress(range(args.episodes), args.episodes, "episodes"):
@@ -69,18 +72,16 @@ def cmd_env_strip(args: argparse.Namespace) -> int:
     """A strip of frames of one expert episode (PNG)."""
     import imageio.v3 as iio
 
+    from dualarm.atomic import atomic_open
     from dualarm.envs.rollout import make_policy, run_episode
 
     env = _environment(args)
-    env.render_size = (args.height, args.width)
     episode = run_episode(env, make_policy(args.policy, env, args.seed), args.seed, camera=args.camera)
     picks = np.linspace(0, len(episode.frames) - 1, args.frames).round().astype(int)
     strip = np.concatenate([episode.frames[i] for i in picks], axis=1)
     out = Path(args.output)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.stem}.tmp.png")
-    iio.imwrite(tmp, strip)
-    tmp.replace(out)
+    with atomic_open(out) as f:
+        iio.imwrite(f, strip, extension=".png")
     print(f"wrote {out}: steps {', '.join(str(int(i)) for i in picks)} of {episode.steps}")
     return 0
 
@@ -100,7 +101,8 @@ def add_env_commands(sub) -> None:
                        help="action space (default: cartesian)")
         p.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
 
-    def image_options(p: argparse.ArgumentParser) -> None:
+    def rendering_options(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--policy", choices=("expert", "random"), default="expert")
         p.add_argument("--camera", choices=("front", "side"), default="front")
         p.add_argument("--width", type=int, default=640)
         p.add_argument("--height", type=int, default=480)
@@ -108,8 +110,7 @@ def add_env_commands(sub) -> None:
     video = esub.add_parser("video", help="render episodes of a policy to MP4 or GIF",
                             description="Run episodes of a policy and write them as a video.")
     task_options(video)
-    image_options(video)
-    video.add_argument("--policy", choices=("expert", "random"), default="expert")
+    rendering_options(video)
     video.add_argument("--episodes", type=int, default=2)
     video.add_argument("--fps", type=float, default=12.0,
                        help="frames per second of the video; one frame per step, so the default "
@@ -127,8 +128,7 @@ def add_env_commands(sub) -> None:
     strip = esub.add_parser("strip", help="a strip of frames of one episode (PNG)",
                             description="Render one episode and put evenly spaced frames side by side.")
     task_options(strip)
-    image_options(strip)
-    strip.add_argument("--policy", choices=("expert", "random"), default="expert")
+    rendering_options(strip)
     strip.add_argument("--frames", type=int, default=5)
     strip.add_argument("-o", "--output", type=Path, required=True, metavar="FILE.png")
     strip.set_defaults(func=cmd_env_strip)
