@@ -84,6 +84,7 @@ def test_batch_of_copies_equals_separate_environments():
     seeds = [5, 6, 7]
     obs = np.stack([batch.reset_env(i, s)[0] for i, s in enumerate(seeds)])
     single_obs = [env.reset(seed=s)[0] for env, s in zip(singles, seeds)]
+    assert all(np.array_equal(obs[i], single_obs[i]) for i in range(3))
     rng = np.random.default_rng(0)
     for step in range(30):
         actions = np.stack([expert(o) for o in obs]) + rng.normal(0, 0.3, (3, 2, 4))

@@ -1,8 +1,9 @@
 """The reach-grasp-align task on the MuJoCo Baxter scene: physics, sub-task states, rewards.
 
-``BaxterReachGraspAlign`` is the simulation core with plain numpy input and output for
-both arms at once (rows: left, right). The Gymnasium and PettingZoo environments in
-``dualarm.envs.gym_env`` and ``dualarm.envs.pettingzoo_env`` wrap it.
+``BaxterBatch`` steps n copies of the task together with plain numpy input and output
+(axes: env, arm left/right, ...); ``BaxterReachGraspAlign`` is one copy without the env
+axis, which the Gymnasium and PettingZoo environments in ``dualarm.envs.gym_env`` and
+``dualarm.envs.pettingzoo_env`` wrap.
 
 Sub-task of each arm, evaluated from the physical state at every step (paper Eq. 16,
 "the first goal not yet reached"):
@@ -26,7 +27,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from dualarm.constraints import SUBTASKS, ConstraintSet
+from dualarm.constraints import ConstraintSet
 from dualarm.envs.config import TaskConfig
 from dualarm.envs.scene import GRIP_DOWN_QUAT, REST_POSTURE, compiled_model
 from dualarm.kinematics import ARMS, BAXTER_JOINT_LIMITS, BAXTER_JOINT_NAMES
@@ -37,6 +38,16 @@ FINGER_CLOSED = np.array([0.0115, -0.0115])
 _FINGER_TRAVEL = FINGER_CLOSED - FINGER_OPEN
 #: Finger-pad gap (m) at finger joints (0, 0): the gap is this + l - r.
 _GAP_AT_ZERO = 2 * (0.01 + 0.01725 - 0.0047 - 0.0035)
+
+
+def finger_gap(fingers: np.ndarray) -> np.ndarray:
+    """Distance between the two finger pads (m) from finger joints (..., 2) ordered (r, l)."""
+    return _GAP_AT_ZERO + fingers[..., 1] - fingers[..., 0]
+
+
+def closed_gap(config: TaskConfig) -> float:
+    """Largest finger gap (m) at which the fingers count as closed on a box."""
+    return 2 * config.scene.box_half_size + config.grasp_gap_margin
 
 #: Per-arm observation layout (paper Section 3.2.1.2): name -> size. "joint_angles" is
 #: present only when the configuration asks for it.
@@ -86,18 +97,23 @@ class StepResult:
     info: dict
 
 
-@functools.lru_cache(maxsize=8)
 def home_posture(config: TaskConfig) -> np.ndarray:
     """Arm joint angles (2, 7) rad with the grip sites at ``config.home_grip``, gripper down.
 
-    Found once by letting the cartesian controller settle from ``REST_POSTURE``.
+    Found once per scene and home position (whatever the control mode or condition) by
+    letting the cartesian controller settle from ``REST_POSTURE``.
     """
-    model = compiled_model(config.scene, False, "cartesian")
+    return _settled_posture(config.scene, config.home_grip).copy()
+
+
+@functools.lru_cache(maxsize=8)
+def _settled_posture(scene, home_grip: tuple[float, float, float]) -> np.ndarray:
+    model = compiled_model(scene, False, "cartesian")
     data = mujoco.MjData(model)
     task = _Indices(model)
     for arm in range(2):
         data.qpos[task.arm_qpos[arm]] = REST_POSTURE[arm]
-    hx, hy, hz = config.home_grip
+    hx, hy, hz = home_grip
     data.mocap_pos[task.hand_mocap] = [[hx, hy, hz], [hx, -hy, hz]]
     data.ctrl[task.finger_ctrl] = FINGER_OPEN
     mujoco.mj_step(model, data, nstep=600)
@@ -198,14 +214,13 @@ class BaxterBatch:
         self.action_size = 4 if self.cartesian else 8
         self.layout = observation_layout(config.observes_joint_angles)
         self.obs_size = sum(s.stop - s.start for s in self.layout.values())
-        self.home = home_posture(config.with_(control="cartesian"))
+        self.home = home_posture(config)
         self.render_size = render_size
         self._renderer = None
         self._c0 = np.asarray(config.guide_c0, dtype=float)
         scene = config.scene
-        self.table_top = scene.table_height
         self.box_rest_z = scene.table_height + scene.box_half_size
-        self._closed_gap = 2 * scene.box_half_size + config.grasp_gap_margin
+        self._closed_gap = closed_gap(config)
         self._lifted_z = self.box_rest_z + config.lift_height
         self._align_sq = config.align_threshold ** 2
         self._goal_is_subtask = config.goal == "subtask"
@@ -384,7 +399,7 @@ class BaxterBatch:
         box = qpos[..., 9:12]
         rel = box - grip
         to_box = np.sqrt((rel * rel).sum(axis=-1))
-        gap = _GAP_AT_ZERO + qpos[..., 8] - qpos[..., 7]
+        gap = finger_gap(qpos[..., 7:9])
         grasped = (to_box < c.grasp_tolerance) & (gap <= self._closed_gap) & (box[..., 2] > self._lifted_z)
         reached = grasped | (to_box < c.reach_threshold)
         off = box - targets
@@ -534,5 +549,3 @@ class BaxterReachGraspAlign(BaxterBatch):
         """Current Baxter joint angles (14,) rad, left s0..w2 then right s0..w2."""
         return self.data.qpos[self.ix.arm_qpos].reshape(14).copy()
 
-
-SUBTASK_NAMES = SUBTASKS

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dualarm.envs.baxter import _GAP_AT_ZERO, observation_layout
+from dualarm.envs.baxter import closed_gap, finger_gap, observation_layout
 from dualarm.envs.config import TaskConfig
 
 
@@ -58,14 +58,14 @@ class ScriptedExpert:
         self.task = task
         self.config = config
         self.layout = observation_layout(task.observes_joint_angles)
-        self._closed_gap = 2 * task.scene.box_half_size + task.grasp_gap_margin
+        self._closed_gap = closed_gap(task)
 
     def phases(self, obs: np.ndarray) -> np.ndarray:
         """Phase per arm (2,) int: 0 approach, 1 descend, 2 close, 3 carry."""
         c, L = self.config, self.layout
         rel = obs[:, L["object_rel_pos"]]                      # box - grip
         fingers = obs[:, L["fingers"]]
-        gap = _GAP_AT_ZERO + fingers[:, 1] - fingers[:, 0]
+        gap = finger_gap(fingers)
         dist = np.linalg.norm(rel, axis=1)
         horizontal = np.linalg.norm(rel[:, :2], axis=1)
         held = (dist < c.held_tolerance) & (gap <= self._closed_gap)

@@ -26,9 +26,9 @@ from dualarm.kinematics import ARMS, BAXTER_JOINT_LIMITS, BAXTER_JOINT_NAMES
 #: Height of Baxter's torso origin above the floor (m);.
 TORSO_HEIGHT = 0.93
 
-#: Joint-position servo per Baxter joint s0..w2: stiffness (N m/rad) and torque limit (N m,
-#: robosuite's motor ranges). Damping is critical-ish: kv = 2 sqrt(kp * I_eff), folded
-#: into ``_SERVO_DAMPING_RATIO`` with the reflected inertia estimated per joint.
+#: Joint-position servo per Baxter joint s0..w2 (joint mode): stiffness (N m/rad), damping
+#: (N m s/rad, set by hand for well-damped tracking of 0.1 rad steps) and torque limit
+#: (N m, robosuite's motor ranges).
 SERVO_KP = np.array([800.0, 1000.0, 600.0, 500.0, 150.0, 150.0, 60.0])
 SERVO_KV = np.array([60.0, 80.0, 40.0, 35.0, 8.0, 8.0, 3.0])
 SERVO_TORQUE_LIMIT = np.array([50.0, 100.0, 50.0, 50.0, 15.0, 15.0, 15.0])
@@ -41,13 +41,10 @@ REST_POSTURE = np.array([
     [0.403, -0.636, 0.114, 1.432, 0.735, 1.205, -0.269],
 ])
 
-#: Grip-site orientation that points the gripper down with the fingers closing along
-#: world y (columns: site x, y, z in the world frame), and as a quaternion (w, x, y, z).
-#: Of the two yaws that close along y, this one keeps both wrists near the rest posture
-#: (w2 about +-0.3 rad instead of against its limit).
-GRIP_DOWN = np.array([[0.0, -1.0, 0.0],
-                      [-1.0, 0.0, 0.0],
-                      [0.0, 0.0, -1.0]])
+#: Grip-site orientation (w, x, y, z) that points the gripper down with the fingers closing
+#: along world y: a half turn about (1, -1, 0), so site x = -y, site y = -x, site z = -z in
+#: the world. Of the two yaws that close along y, this one keeps both wrists near the rest
+#: posture (w2 about +-0.3 rad instead of against its limit).
 GRIP_DOWN_QUAT = [0.0, 0.7071067811865476, -0.7071067811865476, 0.0]
 
 #: Cartesian mode: joint springs towards REST_POSTURE (N m/rad) and joint damping (N m s/rad).
