@@ -224,6 +224,7 @@ class BaxterBatch:
         self._lifted_z = self.box_rest_z + config.lift_height
         self._align_sq = config.align_threshold ** 2
         self._goal_is_subtask = config.goal == "subtask"
+        self._success_key = {"reach": "reached", "grasp": "grasped", "align": "aligned"}[config.success_at]
         self._observe_joints = config.observes_joint_angles
         self._workspace_low = np.array([0.25, -0.7, scene.table_height + config.min_grip_height])
         self._workspace_high = np.array([1.1, 0.7, 1.4])
@@ -327,19 +328,31 @@ class BaxterBatch:
             return ("dx", "dy", "dz", "grip")
         return tuple(f"d{j}" for j in BAXTER_JOINT_NAMES) + ("grip",)
 
-    def step_all(self, actions) -> StepResult:
+    def step_all(self, actions, active: np.ndarray | None = None) -> StepResult:
         """Advance every copy one control step (``config.substeps`` physics steps each).
 
         Args:
             actions: (num_envs, 2, action_size) in [-1, 1] (clipped).
+            active: optional (num_envs,) bool mask: copies that are False are not simulated
+                (their episode has ended and waits for a reset); their rows of the result
+                are stale and must be ignored. None steps every copy.
 
         Returns:
             A ``StepResult`` whose fields have a leading env axis: obs (n, 2, obs_size),
             reward (n, 2), terminated and truncated (n,) bool arrays, info values (n, ...).
             Copies that end must be ``reset_env`` before the next ``step_all``.
         """
-        if self.needs_reset.any():
-            raise RuntimeError(f"reset env {int(np.argmax(self.needs_reset))} before stepping "
+        if active is None:
+            stepped = range(self.num_envs)
+            waiting = self.needs_reset
+        else:
+            active = np.asarray(active, dtype=bool)
+            if active.shape != (self.num_envs,):
+                raise ValueError(f"active must have shape ({self.num_envs},), got {active.shape}")
+            stepped = np.flatnonzero(active).tolist()
+            waiting = self.needs_reset & active
+        if waiting.any():
+            raise RuntimeError(f"reset env {int(np.argmax(waiting))} before stepping "
                                "(its episode has ended or not begun)")
         a = self.check_actions(actions)
         c, m, ix = self.config, self.model, self.ix
@@ -353,8 +366,9 @@ class BaxterBatch:
                                              self._lower), self._upper)
             self.joint_command = commands
         physics_error = np.zeros(self.num_envs, dtype=bool)
-        grip = np.empty_like(previous_grip)
-        for i, d in enumerate(self.datas):   # the only per-copy work: set, step, read
+        grip = previous_grip.copy() if active is not None else np.empty_like(previous_grip)
+        for i in stepped:                    # the only per-copy work: set, step, read
+            d = self.datas[i]
             if self.cartesian:
                 d.mocap_pos[ix.hand_mocap] = commands[i]
             else:
@@ -370,7 +384,10 @@ class BaxterBatch:
             grip[i] = d.site_xpos[ix.grip_site]
         if not math.isfinite(self._qpos.sum() + grip.sum()):
             physics_error |= ~np.isfinite(self._qpos).all(axis=(1, 2)) | ~np.isfinite(grip).all(axis=(1, 2))
-        self.step_count += 1
+        if active is None:
+            self.step_count += 1
+        else:
+            self.step_count += active
         self.grip_pos = grip
         grip_vel = (grip - previous_grip) * (1.0 / c.control_period)
         state = self._evaluate(grip, self._qpos, self.target_pos)
@@ -383,7 +400,8 @@ class BaxterBatch:
             terms = {k: np.nan_to_num(v, nan=0.0) for k, v in terms.items()}
         terminated = physics_error | (state["success"] & c.terminate_on_success)
         truncated = ~terminated & (self.step_count >= c.max_episode_steps)
-        self.needs_reset |= terminated | truncated
+        ended = terminated | truncated
+        self.needs_reset |= ended if active is None else ended & active
         return StepResult(obs, reward, terminated, truncated, self._info(state, terms, physics_error))
 
     # -------------------------------------------------------------- internals
@@ -405,9 +423,11 @@ class BaxterBatch:
         off = box - targets
         aligned = grasped & ((off * off).sum(axis=-1) < self._align_sq)
         subtask = reached.astype(np.int64) + grasped
-        return {"grip": grip, "qpos": qpos, "rel": rel, "targets": targets, "reached": reached,
-                "grasped": grasped, "aligned": aligned, "subtask": subtask,
-                "success": aligned[:, 0] & aligned[:, 1]}
+        state = {"grip": grip, "qpos": qpos, "rel": rel, "targets": targets, "reached": reached,
+                 "grasped": grasped, "aligned": aligned, "subtask": subtask}
+        done = state[self._success_key]
+        state["success"] = done[:, 0] & done[:, 1]
+        return state
 
     def _reward_terms(self, state: dict) -> dict[str, np.ndarray]:
         """Eq. 16-18 terms, each (n, 2): distance, guide, goal (rg1/rg2) and coordinate (rc)."""

@@ -12,6 +12,7 @@ from dualarm.envs.scene import SceneConfig
 
 CONDITIONS = ("none", "single", "multi")
 GOALS = ("subtask", "final")
+SUBTASK_ORDER = ("reach", "grasp", "align")
 
 
 @dataclass(frozen=True)
@@ -50,6 +51,8 @@ class TaskConfig:
         target_half_separation: half the distance between the two targets along y.
         home_grip: (x, |y|, z) of the grip sites at reset (left at +y).
         terminate_on_success: end the episode when both boxes are at their targets.
+        success_at: the sub-task whose completion by both arms is success (and pays rc):
+            "align" is the full task; "reach" or "grasp" give shorter curricula and tests.
         scene: geometry and physics of the scene.
     """
 
@@ -79,6 +82,7 @@ class TaskConfig:
     target_half_separation: float = 0.1
     home_grip: tuple[float, float, float] = (0.5, 0.25, 0.95)
     terminate_on_success: bool = True
+    success_at: str = "align"
     scene: SceneConfig = field(default_factory=SceneConfig)
 
     def __post_init__(self):
@@ -89,6 +93,8 @@ class TaskConfig:
             raise ValueError(f"condition must be one of {CONDITIONS}, got {self.condition!r}")
         if self.goal not in GOALS:
             raise ValueError(f"goal must be one of {GOALS}, got {self.goal!r}")
+        if self.success_at not in SUBTASK_ORDER:
+            raise ValueError(f"success_at must be one of {SUBTASK_ORDER}, got {self.success_at!r}")
         if self.max_episode_steps < 1 or self.substeps < 1:
             raise ValueError("max_episode_steps and substeps must be at least 1")
         if len(self.guide_c0) != 3 or min(self.guide_c0) < 0:

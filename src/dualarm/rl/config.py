@@ -1,0 +1,88 @@
+"""The hyper-parameters of DADDPG, each with what it does and why it has its value."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields, replace
+
+
+@dataclass(frozen=True)
+class DADDPGConfig:
+    """Dual-agent DDPG settings. Defaults start from Plappert et al. 2018 (DDPG+HER on Fetch)
+    and were tuned on the Baxter task with ``benchmarks/update_speed.py`` and short runs;
+    docs/training.md records the measurements behind each change.
+    """
+
+    hidden: tuple[int, ...] = (256, 256, 256)
+    """Hidden layer widths of every actor and critic (Plappert: 3 x 256)."""
+    actor_lr: float = 1e-3
+    """Adam learning rate of the actors (Plappert: 1e-3)."""
+    critic_lr: float = 1e-3
+    """Adam learning rate of the critics (Plappert: 1e-3)."""
+    batch_size: int = 256
+    """Transitions per update (Plappert: 256)."""
+    gamma: float = 0.98
+    """Discount factor of Eq. 13 (Plappert: 0.98; 50-step episodes)."""
+    polyak: float = 0.95
+    """Target networks keep this fraction per update, Eq. 15 with tau = 1 - polyak (Plappert: 0.95)."""
+    buffer_size: int = 1_000_000
+    """Replay capacity in joint transitions (Plappert: 1e6)."""
+    noise: str = "gaussian"
+    """Exploration noise: "gaussian" or "ou" (Ornstein-Uhlenbeck)."""
+    noise_std: float = 0.2
+    """Standard deviation of the noise in action units, actions span [-1, 1] (Plappert: 0.2)."""
+    ou_theta: float = 0.15
+    """Mean reversion of the OU noise per step."""
+    random_eps: float = 0.3
+    """Probability of a uniformly random action per step and agent (Plappert: 0.3)."""
+    action_l2: float = 1.0
+    """Weight of the mean squared action in the actor loss (Plappert: 1.0)."""
+    obs_clip: float = 5.0
+    """Normalised observations are clipped to +-obs_clip (Plappert: 5)."""
+    grad_clip: float = 10.0
+    """Max global gradient norm per agent and network (0 turns clipping off)."""
+    reward_scale: float = 1.0
+    """Rewards are multiplied by this before the critic sees them (curves log raw rewards)."""
+    q_clip: float = 0.0
+    """If > 0, critic targets are clipped to +-q_clip (in scaled reward units)."""
+    updates_per_step: float = 0.25
+    """Gradient updates per joint environment step (the update-to-data ratio)."""
+    warmup_steps: int = 1000
+    """Joint environment steps of uniformly random actions before learning starts."""
+
+    def __post_init__(self):
+        checks = {
+            "hidden": all(h >= 1 for h in self.hidden) and len(self.hidden) >= 1,
+            "actor_lr": self.actor_lr > 0, "critic_lr": self.critic_lr > 0,
+            "batch_size": self.batch_size >= 1, "gamma": 0 <= self.gamma < 1,
+            "polyak": 0 <= self.polyak < 1, "buffer_size": self.buffer_size >= self.batch_size,
+            "noise": self.noise in ("gaussian", "ou"), "noise_std": self.noise_std >= 0,
+            "ou_theta": self.ou_theta >= 0, "random_eps": 0 <= self.random_eps <= 1,
+            "action_l2": self.action_l2 >= 0, "obs_clip": self.obs_clip > 0,
+            "grad_clip": self.grad_clip >= 0, "reward_scale": self.reward_scale > 0,
+            "q_clip": self.q_clip >= 0, "updates_per_step": self.updates_per_step >= 0,
+            "warmup_steps": self.warmup_steps >= 0,
+        }
+        bad = [name for name, ok in checks.items() if not ok]
+        if bad:
+            name = bad[0]
+            raise ValueError(f"DADDPGConfig.{name} has an invalid value {getattr(self, name)!r}")
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["hidden"] = list(self.hidden)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict, where: str = "config") -> "DADDPGConfig":
+        """Build from a plain dict, naming unknown fields (``where`` prefixes the message)."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise ValueError(f"{where}: unknown DADDPG field(s) {unknown}; known: {sorted(known)}")
+        d = dict(d)
+        if "hidden" in d:
+            d["hidden"] = tuple(int(h) for h in d["hidden"])
+        return cls(**d)
+
+    def with_(self, **changes) -> "DADDPGConfig":
+        return replace(self, **changes)

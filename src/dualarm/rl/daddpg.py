@@ -1,0 +1,222 @@
+"""Dual-agent DDPG, paper Section 2.3: one DDPG agent per arm, trained together.
+
+Agent i has an actor mu_i(s_i) on its own observation and a critic Q_i(s, a_i) on the
+whole state s = (s_1, s_2) and its own action, plus target copies mu'_i and Q'_i:
+
+    Eq. 13   L(theta_Q_i) = E[(y_i - Q_i(s, a_i))^2],  y_i = r_i + gamma Q'_i(s', mu'_i(s'_i))
+    Eq. 14   grad J(theta_mu_i) = E[grad_a Q_i(s, a) |a=mu_i(s_i) grad_theta mu_i(s_i)]
+    Eq. 15   theta' <- tau theta + (1 - tau) theta'
+
+Both agents' networks are stacked along a leading agent axis (``StackedMLP``), so each
+line below updates the two agents in one batched pass.
+
+Shapes: A agents, B batch, O observation width, U action width (narrower agents are
+zero-padded to O and U; padded action components are masked to zero).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from dualarm.rl.config import DADDPGConfig
+from dualarm.rl.networks import StackedMLP
+from dualarm.rl.noise import make_noise
+from dualarm.rl.normalizer import RunningNormalizer
+
+
+class NonFiniteLoss(FloatingPointError):
+    """A loss became NaN or infinite: the update was not applied."""
+
+
+class DADDPG:
+    """The learner: act with noise, update from replay batches, save and load.
+
+    Args:
+        config: hyper-parameters.
+        obs_sizes: observation width of each agent.
+        act_sizes: action width of each agent (actions in [-1, 1]).
+        seed: seeds the initial weights.
+    """
+
+    def __init__(self, config: DADDPGConfig, obs_sizes: tuple[int, ...],
+                 act_sizes: tuple[int, ...], seed: int = 0):
+        self.config = c = config
+        self.num_agents = a = len(obs_sizes)
+        self.obs_sizes, self.act_sizes = tuple(obs_sizes), tuple(act_sizes)
+        self.obs_size, self.act_size = max(obs_sizes), max(act_sizes)
+        g = torch.Generator().manual_seed(seed)
+        state_size = a * self.obs_size
+        self.actor = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True, g, final_scale=0.1)
+        self.critic = StackedMLP(a, state_size + self.act_size, 1, c.hidden, False, g, final_scale=0.1)
+        self.actor_target = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True)
+        self.critic_target = StackedMLP(a, state_size + self.act_size, 1, c.hidden)
+        self.actor_target.load_state_dict(self.actor.state_dict())
+        self.critic_target.load_state_dict(self.critic.state_dict())
+        for p in (*self.actor_target.parameters(), *self.critic_target.parameters()):
+            p.requires_grad_(False)
+        self.actor_opt = torch.optim.Adam(self.actor.parameters(), lr=c.actor_lr, fused=True)
+        self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=c.critic_lr, fused=True)
+        self.normalizer = RunningNormalizer(a, self.obs_size, c.obs_clip)
+        self.action_mask = torch.zeros(a, 1, self.act_size)
+        for i, n in enumerate(act_sizes):
+            self.action_mask[i, :, :n] = 1.0
+        self.noise = make_noise(c.noise, c.noise_std, c.ou_theta)
+        self.updates = 0
+
+    # --------------------------------------------------------------- acting
+    def policy(self, obs: torch.Tensor) -> torch.Tensor:
+        """mu_i(s_i) for every agent: obs (A, B, O) raw float32 -> actions (A, B, U)."""
+        return self.actor(self.normalizer.normalize(obs.transpose(0, 1)).transpose(0, 1)) \
+            * self.action_mask
+
+    def act(self, obs: np.ndarray, rng: np.random.Generator | None = None,
+            explore: bool = False) -> np.ndarray:
+        """Actions (N, A, U) in [-1, 1] for observations (N, A, O) of N environments.
+
+        With ``explore``, noise is added and each agent's action is replaced by a uniform
+        random one with probability ``random_eps`` (both need ``rng``).
+        """
+        with torch.inference_mode():
+            o = torch.as_tensor(np.asarray(obs, dtype=np.float32)).transpose(0, 1)
+            actions = self.policy(o).transpose(0, 1).numpy().astype(np.float64)
+        if explore:
+            c = self.config
+            actions = np.clip(actions + self.noise.sample(rng, actions.shape), -1.0, 1.0)
+            random = rng.uniform(-1.0, 1.0, size=actions.shape)
+            pick = rng.random(actions.shape[:2]) < c.random_eps
+            actions = np.where(pick[..., None], random, actions)
+            actions *= self.action_mask[:, 0].numpy()
+        return actions
+
+    # ------------------------------------------------------------- learning
+    def _state(self, obs_n: torch.Tensor) -> torch.Tensor:
+        """Normalised obs (A, B, O) -> the whole state s = (s_1, ..., s_A) repeated per agent
+        (A, B, A*O)."""
+        a, b, o = obs_n.shape
+        return obs_n.transpose(0, 1).reshape(1, b, a * o).expand(a, b, a * o)
+
+    def update(self, batch: dict[str, torch.Tensor]) -> dict[str, float]:
+        """One gradient step of both agents' critics and actors, then the target update.
+
+        Args:
+            batch: obs and next_obs (B, A, O), act (B, A, U), rew (B, A), done (B,).
+
+        Returns:
+            {"critic_loss", "actor_loss", "q_mean"} summed or averaged over agents.
+
+        Raises:
+            NonFiniteLoss: a loss is NaN or infinite (no parameter was changed).
+        """
+        c = self.config
+        norm = self.normalizer.normalize
+        o = norm(batch["obs"]).transpose(0, 1)                     # (A, B, O)
+        o2 = norm(batch["next_obs"]).transpose(0, 1)
+        a_taken = batch["act"].transpose(0, 1)                     # (A, B, U)
+        r = batch["rew"].t().unsqueeze(-1) * c.reward_scale        # (A, B, 1)
+        not_done = (1.0 - batch["done"]).view(1, -1, 1)            # (1, B, 1)
+        s, s2 = self._state(o), self._state(o2)
+
+        # Eq. 13: y_i = r_i + gamma Q'_i(s', mu'_i(s'_i)); critic loss (y_i - Q_i(s, a_i))^2
+        with torch.no_grad():
+            a2 = self.actor_target(o2) * self.action_mask
+            y = r + c.gamma * not_done * self.critic_target(torch.cat([s2, a2], -1))
+            if c.q_clip > 0:
+                y = y.clamp(-c.q_clip, c.q_clip)
+        q = self.critic(torch.cat([s, a_taken], -1))
+        critic_loss = ((y - q) ** 2).mean(dim=(1, 2)).sum()
+
+        # Eq. 14: ascend Q_i(s, mu_i(s_i)) through the actor only (the critic is held fixed)
+        a_pi = self.actor(o) * self.action_mask
+        self.critic.requires_grad_(False)
+        q_pi = self.critic(torch.cat([s, a_pi], -1))
+        self.critic.requires_grad_(True)
+        actor_loss = (-q_pi.mean(dim=(1, 2)) + c.action_l2 * (a_pi ** 2).mean(dim=(1, 2))).sum()
+
+        if not (torch.isfinite(critic_loss) and torch.isfinite(actor_loss)):
+            raise NonFiniteLoss(f"non-finite loss at update {self.updates + 1}: critic "
+                                f"{critic_loss.item()}, actor {actor_loss.item()}")
+        self.critic_opt.zero_grad(set_to_none=True)
+        self.actor_opt.zero_grad(set_to_none=True)
+        # The actor loss's graph does not reach the critic's weights, and the critic loss's
+        # does not reach the actor's: one backward pass gives both gradients.
+        (critic_loss + actor_loss).backward()
+        self._clip(self.critic)
+        self._clip(self.actor)
+        self.critic_opt.step()
+        self.actor_opt.step()
+
+        # Eq. 15: theta' <- tau theta + (1 - tau) theta', tau = 1 - polyak
+        with torch.no_grad():
+            tau = 1.0 - c.polyak
+            torch._foreach_lerp_(list(self.actor_target.parameters()),
+                                 list(self.actor.parameters()), tau)
+            torch._foreach_lerp_(list(self.critic_target.parameters()),
+                                 list(self.critic.parameters()), tau)
+        self.updates += 1
+        return {"critic_loss": critic_loss.item(), "actor_loss": actor_loss.item(),
+                "q_mean": q.mean().item()}
+
+    def _clip(self, net: torch.nn.Module) -> None:
+        """Scale each agent's gradients so that their global norm is at most grad_clip."""
+        if self.config.grad_clip <= 0:
+            return
+        grads = [p.grad for p in net.parameters() if p.grad is not None]
+        sq = sum(g.pow(2).flatten(1).sum(1) for g in grads)        # (A,)
+        scale = (self.config.grad_clip / (sq.sqrt() + 1e-6)).clamp(max=1.0)
+        for g in grads:
+            g.mul_(scale.view(-1, *([1] * (g.dim() - 1))))
+
+    def update_flops(self, batch_size: int | None = None) -> float:
+        """Floating-point operations of one ``update`` (matmuls only; forward = 1, backward = 2).
+
+        Critic: target actor and target critic forward, critic forward and backward.
+        Actor: actor forward and backward, critic forward and input-gradient backward
+        (weight gradients of the critic are not computed in the actor pass).
+        """
+        b = batch_size or self.config.batch_size
+        fa, fc = self.actor.flops_per_sample(), self.critic.flops_per_sample()
+        return b * (fa + fc + 3 * fc + 3 * fa + 2 * fc)
+
+    # -------------------------------------------------------- saving/loading
+    def state_dict(self) -> dict:
+        """Everything the learner needs to continue exactly (tensors and plain values)."""
+        return {"actor": self.actor.state_dict(), "critic": self.critic.state_dict(),
+                "actor_target": self.actor_target.state_dict(),
+                "critic_target": self.critic_target.state_dict(),
+                "actor_opt": self.actor_opt.state_dict(), "critic_opt": self.critic_opt.state_dict(),
+                "normalizer": self.normalizer.state_dict(), "noise": self.noise.state_dict(),
+                "updates": self.updates, "obs_sizes": list(self.obs_sizes),
+                "act_sizes": list(self.act_sizes), "hidden": list(self.config.hidden)}
+
+    def load_state_dict(self, state: dict) -> None:
+        """Restore from ``state_dict()``; raises ValueError naming what does not match."""
+        for key, mine in (("obs_sizes", self.obs_sizes), ("act_sizes", self.act_sizes),
+                          ("hidden", self.config.hidden)):
+            if tuple(state[key]) != tuple(mine):
+                raise ValueError(f"{key} {tuple(state[key])} of the saved learner does not match "
+                                 f"this one's {tuple(mine)}")
+        self.actor.load_state_dict(state["actor"])
+        self.critic.load_state_dict(state["critic"])
+        self.actor_target.load_state_dict(state["actor_target"])
+        self.critic_target.load_state_dict(state["critic_target"])
+        self.actor_opt.load_state_dict(state["actor_opt"])
+        self.critic_opt.load_state_dict(state["critic_opt"])
+        self.normalizer.load_state_dict(state["normalizer"])
+        self.noise.load_state_dict(state["noise"])
+        self.updates = int(state["updates"])
+
+    def policy_state_dict(self) -> dict:
+        """What acting needs: the actors and the normaliser (small; for ``best`` policies)."""
+        return {"actor": self.actor.state_dict(), "normalizer": self.normalizer.state_dict(),
+                "obs_sizes": list(self.obs_sizes), "act_sizes": list(self.act_sizes),
+                "hidden": list(self.config.hidden)}
+
+    def load_policy_state_dict(self, state: dict) -> None:
+        for key, mine in (("obs_sizes", self.obs_sizes), ("act_sizes", self.act_sizes),
+                          ("hidden", self.config.hidden)):
+            if tuple(state[key]) != tuple(mine):
+                raise ValueError(f"{key} {tuple(state[key])} of the saved policy does not match "
+                                 f"this one's {tuple(mine)}")
+        self.actor.load_state_dict(state["actor"])
+        self.normalizer.load_state_dict(state["normalizer"])

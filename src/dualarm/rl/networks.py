@@ -1,0 +1,71 @@
+"""Per-agent MLPs stored as one stacked tensor per layer, so both agents run in one bmm.
+
+Agent ``i``'s weights are ``weight[i]``: a forward pass of both agents' networks is one
+``torch.baddbmm`` per layer instead of two small matmuls, and Adam over the stacked
+tensors is exactly two independent Adams (it is element-wise).
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import nn
+
+
+class StackedLinear(nn.Module):
+    """``num_agents`` independent affine maps: x (A, B, in) -> (A, B, out).
+
+    Initialised like ``torch.nn.Linear`` (uniform in +-1/sqrt(in)) for each agent.
+    """
+
+    def __init__(self, num_agents: int, in_features: int, out_features: int,
+                 generator: torch.Generator | None = None, init_scale: float = 1.0):
+        super().__init__()
+        bound = init_scale / math.sqrt(in_features)
+        self.weight = nn.Parameter(
+            (torch.rand(num_agents, in_features, out_features, generator=generator) * 2 - 1) * bound)
+        self.bias = nn.Parameter(
+            (torch.rand(num_agents, 1, out_features, generator=generator) * 2 - 1) * bound)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return torch.baddbmm(self.bias, x, self.weight)
+
+
+class StackedMLP(nn.Module):
+    """ReLU MLPs, one per agent: x (A, B, in) -> (A, B, out), optional tanh on the output.
+
+    Args:
+        num_agents: A.
+        in_features, out_features: input and output widths (shared by the agents; pad
+            narrower agents with zeros).
+        hidden: widths of the hidden layers.
+        tanh_output: squash the output to (-1, 1) (actors).
+        generator: torch RNG for the initial weights (reproducible runs).
+        final_scale: scale of the last layer's initial weights (small keeps early actions
+            and values near zero).
+    """
+
+    def __init__(self, num_agents: int, in_features: int, out_features: int,
+                 hidden: tuple[int, ...], tanh_output: bool = False,
+                 generator: torch.Generator | None = None, final_scale: float = 1.0):
+        super().__init__()
+        widths = (in_features, *hidden)
+        self.hidden = nn.ModuleList(StackedLinear(num_agents, a, b, generator)
+                                    for a, b in zip(widths[:-1], widths[1:]))
+        self.out = StackedLinear(num_agents, widths[-1], out_features, generator, final_scale)
+        self.tanh_output = tanh_output
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        for layer in self.hidden:
+            x = torch.relu(layer(x))
+        x = self.out(x)
+        return torch.tanh(x) if self.tanh_output else x
+
+    def flops_per_sample(self) -> int:
+        """Multiply-adds x 2 of one forward pass of all agents for one sample."""
+        total = 0
+        for layer in (*self.hidden, self.out):
+            a, i, o = layer.weight.shape
+            total += 2 * a * i * o
+        return total

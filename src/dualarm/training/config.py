@@ -1,0 +1,124 @@
+"""Everything a training run is made of, in one typed value saved as ``config.yaml``."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+
+import yaml
+
+from dualarm.errors import InputError
+from dualarm.rl.config import DADDPGConfig
+
+#: TaskConfig fields a run may override (the rest keep the task's defaults).
+TASK_OVERRIDES = ("control", "goal", "success_at", "max_episode_steps", "joint_angles_in_obs",
+                  "terminate_on_success", "coordinate_bonus", "grasp_bonus", "reach_bonus",
+                  "guide_c0")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """A training run of DADDPG on the Baxter task.
+
+    Attributes:
+        condition: "none", "single" or "multi" (paper Section 3.2.2).
+        constraints: constraint file for "single"/"multi"; None uses the shipped default.
+        task: TaskConfig fields to override, by name (see ``TASK_OVERRIDES``).
+        episodes: training episodes in all (a resumed run may raise it).
+        seed: seeds the networks, the noise, the replay sampling and the episodes.
+        num_envs: environment copies stepped together (policy inference is batched).
+        eval_every: training episodes between evaluations (0: none).
+        eval_episodes: evaluation episodes, deterministic policy, a fixed set of seeds.
+        checkpoint_every: training episodes between checkpoints (0: only by time and at the end).
+        checkpoint_minutes: wall-clock minutes between checkpoints.
+        torch_threads: PyTorch intra-op threads (1 gives bit-reproducible runs).
+        algo: the DADDPG hyper-parameters.
+    """
+
+    condition: str = "multi"
+    constraints: str | None = None
+    task: dict = field(default_factory=dict)
+    episodes: int = 3000
+    seed: int = 0
+    num_envs: int = 16
+    eval_every: int = 100
+    eval_episodes: int = 50
+    checkpoint_every: int = 0
+    checkpoint_minutes: float = 5.0
+    torch_threads: int = 1
+    algo: DADDPGConfig = field(default_factory=DADDPGConfig)
+
+    def __post_init__(self):
+        from dualarm.envs.config import CONDITIONS
+        if self.condition not in CONDITIONS:
+            raise ValueError(f"condition must be one of {CONDITIONS}, got {self.condition!r}")
+        unknown = sorted(set(self.task) - set(TASK_OVERRIDES))
+        if unknown:
+            raise ValueError(f"task overrides {unknown} are not supported; allowed: {TASK_OVERRIDES}")
+        for name in ("episodes", "num_envs", "torch_threads"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+        for name in ("eval_every", "eval_episodes", "checkpoint_every"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if self.checkpoint_minutes <= 0:
+            raise ValueError(f"checkpoint_minutes must be > 0, got {self.checkpoint_minutes}")
+
+    def task_config(self):
+        """The resolved ``TaskConfig`` of this run."""
+        from dualarm.envs.config import TaskConfig
+
+        task = dict(self.task)
+        if "guide_c0" in task:
+            task["guide_c0"] = tuple(task["guide_c0"])
+        return TaskConfig(condition=self.condition, **task)
+
+    def load_constraints(self):
+        """The ``ConstraintSet`` of the guide term (None for "none")."""
+        if self.condition == "none":
+            return None
+        from dualarm.constraints import ConstraintSet, default_constraints_path
+
+        path = self.constraints or default_constraints_path(self.condition)
+        return ConstraintSet.load(path)
+
+    def with_(self, **changes) -> "TrainConfig":
+        return replace(self, **changes)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["algo"] = self.algo.to_dict()
+        d["task"] = {k: list(v) if isinstance(v, tuple) else v for k, v in self.task.items()}
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict, where: str = "config") -> "TrainConfig":
+        known = {f.name for f in fields(cls)}
+        if not isinstance(d, dict):
+            raise InputError(f"{where}: expected a mapping of training settings")
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise InputError(f"{where}: unknown field(s) {unknown}; known: {sorted(known)}")
+        d = dict(d)
+        try:
+            if "algo" in d:
+                d["algo"] = DADDPGConfig.from_dict(d["algo"] or {}, where=f"{where}: algo")
+            return cls(**d)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"{where}: {exc}") from None
+
+    def save(self, path: str | Path) -> None:
+        from dualarm.atomic import atomic_open
+
+        with atomic_open(path) as f:
+            f.write(yaml.safe_dump(self.to_dict(), sort_keys=False).encode())
+
+    @classmethod
+    def load(cls, path: str | Path) -> "TrainConfig":
+        try:
+            d = yaml.safe_load(Path(path).read_text())
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read the run's config ({exc.strerror})") from None
+        except yaml.YAMLError as exc:
+            raise InputError(f"{path}: not valid YAML ({exc})") from None
+        return cls.from_dict(d, where=str(path))

@@ -1,0 +1,65 @@
+"""Deterministic evaluation of a learner on a fixed set of seeded episodes."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dualarm.training.vector import EVAL_SEED_BASE, VectorEnv, seeds_for
+
+
+@dataclass
+class EvalResult:
+    """Outcome of ``evaluate``.
+
+    Attributes:
+        success: (N,) bool per episode.
+        returns: (N, A) summed rewards per episode and agent.
+        steps: (N,) episode lengths.
+    """
+
+    success: np.ndarray
+    returns: np.ndarray
+    steps: np.ndarray
+
+    @property
+    def success_rate(self) -> float:
+        return float(self.success.mean()) if len(self.success) else float("nan")
+
+    @property
+    def mean_return(self) -> float:
+        """Mean over episodes of the return summed over agents."""
+        return float(self.returns.sum(axis=1).mean()) if len(self.returns) else float("nan")
+
+
+def evaluate(act, vec: VectorEnv, episodes: int, seed_base: int = EVAL_SEED_BASE) -> EvalResult:
+    """Run ``episodes`` episodes with a deterministic policy, ``vec.num_envs`` at a time.
+
+    Args:
+        act: maps observations (n, A, O) to actions (n, A, U) in [-1, 1].
+        vec: the environment copies.
+        episodes: how many; episode j is reset with ``seeds_for(seed_base, 0, episodes)[j]``.
+    """
+    seeds = seeds_for(seed_base, 0, episodes)
+    success = np.zeros(episodes, dtype=bool)
+    returns = np.zeros((episodes, 2))
+    steps = np.zeros(episodes, dtype=np.int64)
+    for first in range(0, episodes, vec.num_envs):
+        n = min(vec.num_envs, episodes - first)
+        obs = np.zeros((vec.num_envs, 2, vec.obs_size))
+        active = np.zeros(vec.num_envs, dtype=bool)
+        active[:n] = True
+        for i in range(n):
+            obs[i] = vec.reset(i, seeds[first + i])
+        rows = first + np.arange(n)
+        while active.any():
+            step = vec.step(act(obs), active)
+            live = active[:n]
+            returns[rows[live]] += step.reward[:n][live]
+            steps[rows[live]] += 1
+            ended = active & (step.terminated | step.truncated)
+            success[rows[ended[:n]]] = step.success[:n][ended[:n]]
+            active &= ~ended
+            obs = step.obs
+    return EvalResult(success, returns, steps)

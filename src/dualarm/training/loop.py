@@ -1,0 +1,350 @@
+"""The training loop: collect episodes in rounds, update DADDPG, log, evaluate, checkpoint.
+
+A round starts one episode in each environment copy (seeded by the episode's number),
+steps the copies together until all have ended, stores the transitions, updates the
+observation statistics and then makes ``updates_per_step`` x (steps of the round)
+gradient updates. Checkpoints are taken between rounds only, so a checkpoint always sits
+on an episode boundary: a run that is killed and resumed truncates its logs to the
+checkpoint and replays the lost episodes exactly as they would have run.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import torch
+
+from dualarm.errors import InputError
+from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
+from dualarm.rl.replay import ReplayBuffer
+from dualarm.training.config import TrainConfig
+from dualarm.training.evaluation import evaluate
+from dualarm.training.run_dir import (CheckpointError, CsvLog, RunPaths, load_checkpoint,
+                                      save_checkpoint)
+from dualarm.training.vector import BaxterVector, ParallelEnvVector, VectorEnv, seeds_for
+
+EVAL_COLUMNS = ["episode", "env_steps", "wall_time_s", "success_rate", "return_mean",
+                "steps_mean"]
+
+
+class TrainingDiverged(RuntimeError):
+    """A loss became NaN or infinite; the run stopped and its last good checkpoint is kept."""
+
+
+@dataclass
+class TrainResult:
+    """Where a run ended: episodes and env steps done, the run directory, the last evaluation."""
+
+    out: Path
+    episodes: int
+    env_steps: int
+    wall_time_s: float
+    last_eval: dict | None
+
+
+def make_vector_env(config: TrainConfig, num_envs: int,
+                    make_env: Callable[[], object] | None = None) -> VectorEnv:
+    """Copies of the run's environment: the Baxter task, or ``make_env()`` (a ParallelEnv)."""
+    if make_env is not None:
+        return ParallelEnvVector(make_env, num_envs)
+    return BaxterVector(config.task_config(), config.load_constraints(), num_envs)
+
+
+class Trainer:
+    """One run of DADDPG in a run directory (see ``dualarm.training.run_dir``).
+
+    Use ``Trainer.start(config, out)`` for a new run and ``Trainer.resume(out)`` to continue
+    one; then ``run()``.
+
+    Args:
+        config: the run's settings.
+        paths: the run directory.
+        make_env: builds one copy of a two-agent PettingZoo ParallelEnv; None means the
+            Baxter task of ``config``.
+        progress: show a progress bar on stderr.
+    """
+
+    def __init__(self, config: TrainConfig, paths: RunPaths, make_env=None, progress: bool = True):
+        self.config = config
+        self.paths = paths
+        self.progress = progress
+        torch.set_num_threads(config.torch_threads)
+        self.vec = make_vector_env(config, config.num_envs, make_env)
+        self.eval_vec = (make_vector_env(config, min(config.num_envs, config.eval_episodes), make_env)
+                         if config.eval_every and config.eval_episodes else None)
+        v = self.vec
+        self.agent = DADDPG(config.algo, v.obs_sizes, v.act_sizes, seed=config.seed)
+        self.buffer = ReplayBuffer(config.algo.buffer_size, 2, v.obs_size, v.act_size)
+        self.rng = np.random.default_rng([config.seed, 1])
+        self.episodes = 0
+        self.env_steps = 0
+        self.updates_owed = 0.0
+        self.wall_time_s = 0.0
+        self.eval_rows = 0
+        self.best = (-math.inf, -math.inf)      # (success rate, mean return) of the best eval
+        self.last_eval: dict | None = None
+        self.recent_success = deque(maxlen=100)
+        self.recent_return = deque(maxlen=100)
+        columns = ["episode", "env_steps", "wall_time_s", "steps"]
+        columns += [f"return_{a}" for a in v.agents] + ["return_total", "success"]
+        if v.has_subtasks:
+            columns += [f"subtask_{a}" for a in v.agents]
+        columns += [f"{t}_{a}" for t in v.term_names for a in v.agents]
+        self.metrics = CsvLog(paths.metrics, columns)
+        self.eval_log = CsvLog(paths.eval, EVAL_COLUMNS)
+        self._writer = None
+
+    # ------------------------------------------------------------ lifecycle
+    @classmethod
+    def start(cls, config: TrainConfig, out: str | Path, make_env=None,
+              progress: bool = True) -> "Trainer":
+        """A new run in ``out`` (which must not hold a run already)."""
+        paths = RunPaths(out)
+        if paths.config.exists() or paths.latest.exists():
+            raise InputError(f"{paths.root} already holds a run: resume it with "
+                             f"`dualarm train --resume {paths.root}` or choose another --out")
+        paths.root.mkdir(parents=True, exist_ok=True)
+        trainer = cls(config, paths, make_env, progress)
+        config.save(paths.config)
+        trainer.metrics.truncate(0)
+        trainer.eval_log.truncate(0)
+        return trainer
+
+    @classmethod
+    def resume(cls, out: str | Path, episodes: int | None = None, make_env=None,
+               progress: bool = True) -> "Trainer":
+        """Continue the run in ``out`` from its latest checkpoint (or from the start if it
+        has none), optionally with a new total of ``episodes``."""
+        paths = RunPaths(out)
+        if not paths.config.exists():
+            raise InputError(f"{paths.root}: no run to resume (no config.yaml there)")
+        config = TrainConfig.load(paths.config)
+        if episodes is not None:
+            config = config.with_(episodes=episodes)
+            config.save(paths.config)
+        trainer = cls(config, paths, make_env, progress)
+        if paths.latest.exists():
+            trainer.load(load_checkpoint(paths.latest))
+        trainer.metrics.truncate(trainer.episodes)
+        trainer.eval_log.truncate(trainer.eval_rows)
+        return trainer
+
+    # ------------------------------------------------------------- the loop
+    def run(self) -> TrainResult:
+        """Train until ``config.episodes`` episodes are done; returns where it ended.
+
+        Raises:
+            TrainingDiverged: a loss became non-finite (the last checkpoint is kept).
+        """
+        from torch.utils.tensorboard import SummaryWriter
+        from tqdm import tqdm
+
+        c = self.config
+        self._writer = SummaryWriter(str(self.paths.events), purge_step=self.episodes or None)
+        bar = tqdm(total=c.episodes, initial=self.episodes, unit="ep", file=sys.stderr,
+                   disable=not self.progress, desc=f"train {c.condition}", dynamic_ncols=True)
+        started = time.perf_counter() - self.wall_time_s
+        last_checkpoint = time.perf_counter()
+        try:
+            while self.episodes < c.episodes:
+                before = self.episodes
+                rows, losses = self._round(started)
+                self.metrics.append(rows)
+                self._log_round(rows, losses)
+                bar.update(len(rows))
+                evaluated = self._crossed(before, c.eval_every) or self.episodes >= c.episodes
+                if self.eval_vec is not None and evaluated:
+                    self._evaluate(started)
+                self.wall_time_s = time.perf_counter() - started
+                bar.set_postfix(self._postfix(), refresh=False)
+                due = (time.perf_counter() - last_checkpoint >= 60 * c.checkpoint_minutes
+                       or self._crossed(before, c.checkpoint_every) or evaluated)
+                if due or self.episodes >= c.episodes:
+                    self.save()
+                    last_checkpoint = time.perf_counter()
+        finally:
+            bar.close()
+            self._writer.close()
+        return TrainResult(self.paths.root, self.episodes, self.env_steps, self.wall_time_s,
+                           self.last_eval)
+
+    def _crossed(self, before: int, every: int) -> bool:
+        return every > 0 and before // every != self.episodes // every
+
+    def _round(self, started: float) -> tuple[list[dict], list[dict]]:
+        """Run one episode in each copy (fewer at the end of the run), then update."""
+        c, v, agent, a = self.config, self.vec, self.agent, self.config.algo
+        n = min(v.num_envs, c.episodes - self.episodes)
+        seeds = seeds_for(c.seed, self.episodes, n)
+        obs = np.zeros((v.num_envs, 2, v.obs_size))
+        active = np.zeros(v.num_envs, dtype=bool)
+        active[:n] = True
+        for i in range(n):
+            obs[i] = v.reset(i, seeds[i])
+        agent.noise.reset(active)
+        returns = np.zeros((n, 2))
+        steps = np.zeros(n, dtype=np.int64)
+        success = np.zeros(n, dtype=bool)
+        subtask = np.zeros((n, 2), dtype=np.int64)
+        terms = {t: np.zeros((n, 2)) for t in v.term_names}
+        seen = [obs[:n].copy()]
+        mask = agent.action_mask[:, 0].numpy()
+        while active.any():
+            if self.env_steps < a.warmup_steps:
+                actions = self.rng.uniform(-1.0, 1.0, (v.num_envs, 2, v.act_size)) * mask
+            else:
+                actions = agent.act(obs, self.rng, explore=True)
+            step = v.step(actions, active)
+            live = np.flatnonzero(active)
+            self.buffer.add(obs[live], actions[live], step.reward[live], step.obs[live],
+                            step.terminated[live])
+            self.env_steps += len(live)
+            live_n = live[live < n]
+            returns[live_n] += step.reward[live_n]
+            steps[live_n] += 1
+            for t in v.term_names:
+                terms[t][live_n] += step.terms[t][live_n]
+            if step.subtask is not None:
+                subtask[live_n] = np.maximum(subtask[live_n], step.subtask[live_n])
+            ended = active & (step.terminated | step.truncated)
+            success[ended[:n]] = step.success[:n][ended[:n]]
+            active &= ~ended
+            seen.append(step.obs[live])
+            obs = step.obs
+        round_steps = int(steps.sum())
+        agent.normalizer.update(np.concatenate(seen))
+        losses = self._update(round_steps)
+        wall = time.perf_counter() - started
+        rows = []
+        for i in range(n):
+            self.episodes += 1
+            row = {"episode": self.episodes, "env_steps": self.env_steps - round_steps + int(steps[:i + 1].sum()),
+                   "wall_time_s": f"{wall:.3f}", "steps": int(steps[i])}
+            for k, name in enumerate(v.agents):
+                row[f"return_{name}"] = f"{returns[i, k]:.6f}"
+            row["return_total"] = f"{returns[i].sum():.6f}"
+            row["success"] = int(success[i])
+            if v.has_subtasks:
+                for k, name in enumerate(v.agents):
+                    row[f"subtask_{name}"] = int(subtask[i, k])
+            for t in v.term_names:
+                for k, name in enumerate(v.agents):
+                    row[f"{t}_{name}"] = f"{terms[t][i, k]:.6f}"
+            rows.append(row)
+            self.recent_success.append(bool(success[i]))
+            self.recent_return.append(float(returns[i].sum()))
+        return rows, losses
+
+    def _update(self, round_steps: int) -> list[dict]:
+        """The round's share of gradient updates (none during warm-up)."""
+        a = self.config.algo
+        if self.env_steps < a.warmup_steps or len(self.buffer) < a.batch_size:
+            return []
+        self.updates_owed += a.updates_per_step * round_steps
+        count = int(self.updates_owed)
+        self.updates_owed -= count
+        losses = []
+        for _ in range(count):
+            try:
+                losses.append(self.agent.update(self.buffer.sample(self.rng, a.batch_size)))
+            except NonFiniteLoss as exc:
+                raise TrainingDiverged(
+                    f"training stopped in the round after episode {self.episodes}: {exc}. "
+                    f"The last good checkpoint is kept in {self.paths.latest}; lower the "
+                    "learning rates or the reward scale, or set grad_clip, and resume") from None
+        return losses
+
+    def _evaluate(self, started: float) -> None:
+        c = self.config
+        result = evaluate(lambda o: self.agent.act(o), self.eval_vec, c.eval_episodes)
+        self.wall_time_s = time.perf_counter() - started
+        row = {"episode": self.episodes, "env_steps": self.env_steps,
+               "wall_time_s": f"{self.wall_time_s:.3f}", "success_rate": f"{result.success_rate:.4f}",
+               "return_mean": f"{result.mean_return:.6f}", "steps_mean": f"{result.steps.mean():.3f}"}
+        self.eval_log.append([row])
+        self.eval_rows += 1
+        self.last_eval = {"episode": self.episodes, "success_rate": result.success_rate,
+                          "return_mean": result.mean_return}
+        self._writer.add_scalar("eval/success_rate", result.success_rate, self.episodes)
+        self._writer.add_scalar("eval/return_mean", result.mean_return, self.episodes)
+        if (result.success_rate, result.mean_return) > self.best:
+            self.best = (result.success_rate, result.mean_return)
+            save_checkpoint(self.paths.best, {"policy": self.agent.policy_state_dict(),
+                                              "config": c.to_dict(), "eval": self.last_eval})
+
+    def _log_round(self, rows: list[dict], losses: list[dict]) -> None:
+        w = self._writer
+        for row in rows:
+            w.add_scalar("train/return_total", float(row["return_total"]), row["episode"])
+            w.add_scalar("train/success", row["success"], row["episode"])
+        if losses:
+            for key in losses[0]:
+                w.add_scalar(f"loss/{key}", float(np.mean([x[key] for x in losses])), self.episodes)
+        w.add_scalar("train/success_rate_100", float(np.mean(self.recent_success)), self.episodes)
+
+    def _postfix(self) -> dict:
+        post = {"succ100": f"{np.mean(self.recent_success):.2f}",
+                "ret100": f"{np.mean(self.recent_return):.1f}"}
+        if self.last_eval is not None:
+            post["eval"] = f"{self.last_eval['success_rate']:.2f}"
+        return post
+
+    # ---------------------------------------------------------- checkpoints
+    def save(self) -> None:
+        """Write ``checkpoints/latest.pt`` atomically (call between rounds only)."""
+        save_checkpoint(self.paths.latest, {
+            "config": self.config.with_(episodes=1).to_dict(),
+            "learner": self.agent.state_dict(),
+            "replay": self.buffer.state_dict(),
+            "rng": self.rng.bit_generator.state,
+            "torch_rng": torch.get_rng_state(),
+            "counters": {"episodes": self.episodes, "env_steps": self.env_steps,
+                         "updates_owed": self.updates_owed, "wall_time_s": self.wall_time_s,
+                         "eval_rows": self.eval_rows, "best": list(self.best),
+                         "recent_success": list(self.recent_success),
+                         "recent_return": list(self.recent_return),
+                         "last_eval": self.last_eval},
+        })
+
+    def load(self, payload: dict) -> None:
+        """Restore the state saved by ``save`` (the config must match but for ``episodes``)."""
+        where = self.paths.latest
+        mine = self.config.with_(episodes=1).to_dict()
+        theirs = payload.get("config", {})
+        changed = sorted(k for k in mine if mine.get(k) != theirs.get(k))
+        if changed:
+            raise CheckpointError(f"{where}: the checkpoint was made with different settings "
+                                  f"({', '.join(changed)}) than {self.paths.config}")
+        try:
+            self.agent.load_state_dict(payload["learner"])
+            self.buffer.load_state_dict(payload["replay"])
+            self.rng.bit_generator.state = payload["rng"]
+            torch.set_rng_state(payload["torch_rng"])
+            k = payload["counters"]
+            self.episodes, self.env_steps = int(k["episodes"]), int(k["env_steps"])
+            self.updates_owed, self.wall_time_s = float(k["updates_owed"]), float(k["wall_time_s"])
+            self.eval_rows, self.best = int(k["eval_rows"]), tuple(k["best"])
+            self.recent_success.extend(k["recent_success"])
+            self.recent_return.extend(k["recent_return"])
+            self.last_eval = k["last_eval"]
+        except (KeyError, ValueError, RuntimeError, TypeError) as exc:
+            raise CheckpointError(f"{where}: incompatible with this run or this version "
+                                  f"({type(exc).__name__}: {exc})") from None
+
+
+def train(config: TrainConfig, out: str | Path, make_env=None, progress: bool = True) -> TrainResult:
+    """Start a run in ``out`` and train it to the end (see ``Trainer``)."""
+    return Trainer.start(config, out, make_env, progress).run()
+
+
+def resume(out: str | Path, episodes: int | None = None, make_env=None,
+           progress: bool = True) -> TrainResult:
+    """Continue the run in ``out`` to its (or a new) total of episodes."""
+    return Trainer.resume(out, episodes, make_env, progress).run()
