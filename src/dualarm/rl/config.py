@@ -44,6 +44,10 @@ class DADDPGConfig:
     """Rewards are multiplied by this before the critic sees them (curves log raw rewards)."""
     q_clip: float = 0.0
     """If > 0, critic targets are clipped to +-q_clip (in scaled reward units)."""
+    twin_critics: bool = False
+    """Two critics per agent, targets from their minimum (TD3's fix of over-estimation)."""
+    target_noise: float = 0.0
+    """Std of clipped noise on the target actions of Eq. 13 (TD3's smoothing; 0 = off)."""
     updates_per_step: float = 0.25
     """Gradient updates per joint environment step (the update-to-data ratio)."""
     warmup_steps: int = 1000
@@ -59,7 +63,7 @@ class DADDPGConfig:
             "ou_theta": self.ou_theta >= 0, "random_eps": 0 <= self.random_eps <= 1,
             "action_l2": self.action_l2 >= 0, "obs_clip": self.obs_clip > 0,
             "grad_clip": self.grad_clip >= 0, "reward_scale": self.reward_scale > 0,
-            "q_clip": self.q_clip >= 0, "updates_per_step": self.updates_per_step >= 0,
+            "q_clip": self.q_clip >= 0, "target_noise": self.target_noise >= 0, "updates_per_step": self.updates_per_step >= 0,
             "warmup_steps": self.warmup_steps >= 0,
         }
         bad = [name for name, ok in checks.items() if not ok]

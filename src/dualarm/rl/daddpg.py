@@ -47,10 +47,13 @@ class DADDPG:
         self.obs_size, self.act_size = max(obs_sizes), max(act_sizes)
         g = torch.Generator().manual_seed(seed)
         state_size = a * self.obs_size
+        # Critic stacks: [Q_1 .. Q_A] or, with twin critics, [Q_1 .. Q_A, Q2_1 .. Q2_A].
+        self.critics_per_agent = 2 if c.twin_critics else 1
+        k = a * self.critics_per_agent
         self.actor = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True, g, final_scale=0.1)
-        self.critic = StackedMLP(a, state_size + self.act_size, 1, c.hidden, False, g, final_scale=0.1)
+        self.critic = StackedMLP(k, state_size + self.act_size, 1, c.hidden, False, g, final_scale=0.1)
         self.actor_target = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True)
-        self.critic_target = StackedMLP(a, state_size + self.act_size, 1, c.hidden)
+        self.critic_target = StackedMLP(k, state_size + self.act_size, 1, c.hidden)
         self.actor_target.load_state_dict(self.actor.state_dict())
         self.critic_target.load_state_dict(self.critic.state_dict())
         for p in (*self.actor_target.parameters(), *self.critic_target.parameters()):
@@ -90,11 +93,17 @@ class DADDPG:
         return actions
 
     # ------------------------------------------------------------- learning
-    def _state(self, obs_n: torch.Tensor) -> torch.Tensor:
-        """Normalised obs (A, B, O) -> the whole state s = (s_1, ..., s_A) repeated per agent
-        (A, B, A*O)."""
+    def _critic_input(self, obs_n: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        """Critic input (K, B, A*O + U): the whole state s = (s_1, ..., s_A) from normalised
+        obs (A, B, O), next to each critic's own agent's action from actions (A, B, U)."""
         a, b, o = obs_n.shape
-        return obs_n.transpose(0, 1).reshape(1, b, a * o).expand(a, b, a * o)
+        k = a * self.critics_per_agent
+        s = obs_n.transpose(0, 1).reshape(1, b, a * o).expand(k, b, a * o)
+        return torch.cat([s, actions.repeat(self.critics_per_agent, 1, 1)], -1)
+
+    def _per_agent(self, q: torch.Tensor) -> torch.Tensor:
+        """Critic outputs (K, B, 1) -> (critics_per_agent, A, B, 1)."""
+        return q.view(self.critics_per_agent, self.num_agents, *q.shape[1:])
 
     def update(self, batch: dict[str, torch.Tensor]) -> dict[str, float]:
         """One gradient step of both agents' critics and actors, then the target update.
@@ -115,21 +124,24 @@ class DADDPG:
         a_taken = batch["act"].transpose(0, 1)                     # (A, B, U)
         r = batch["rew"].t().unsqueeze(-1) * c.reward_scale        # (A, B, 1)
         not_done = (1.0 - batch["done"]).view(1, -1, 1)            # (1, B, 1)
-        s, s2 = self._state(o), self._state(o2)
 
         # Eq. 13: y_i = r_i + gamma Q'_i(s', mu'_i(s'_i)); critic loss (y_i - Q_i(s, a_i))^2
         with torch.no_grad():
-            a2 = self.actor_target(o2) * self.action_mask
-            y = r + c.gamma * not_done * self.critic_target(torch.cat([s2, a2], -1))
+            a2 = self.actor_target(o2)
+            if c.target_noise > 0:     # optional target smoothing (TD3), off by default
+                eps = (torch.randn(a2.shape) * c.target_noise).clamp(-0.5, 0.5)
+                a2 = (a2 + eps).clamp(-1.0, 1.0)
+            q2 = self._per_agent(self.critic_target(self._critic_input(o2, a2 * self.action_mask)))
+            y = r + c.gamma * not_done * q2.min(dim=0).values     # min over twins (if any)
             if c.q_clip > 0:
                 y = y.clamp(-c.q_clip, c.q_clip)
-        q = self.critic(torch.cat([s, a_taken], -1))
-        critic_loss = ((y - q) ** 2).mean(dim=(1, 2)).sum()
+        q = self._per_agent(self.critic(self._critic_input(o, a_taken)))
+        critic_loss = ((y - q) ** 2).mean(dim=(2, 3)).sum()
 
         # Eq. 14: ascend Q_i(s, mu_i(s_i)) through the actor only (the critic is held fixed)
         a_pi = self.actor(o) * self.action_mask
         self.critic.requires_grad_(False)
-        q_pi = self.critic(torch.cat([s, a_pi], -1))
+        q_pi = self._per_agent(self.critic(self._critic_input(o, a_pi)))[0]
         self.critic.requires_grad_(True)
         actor_loss = (-q_pi.mean(dim=(1, 2)) + c.action_l2 * (a_pi ** 2).mean(dim=(1, 2))).sum()
 
@@ -155,7 +167,7 @@ class DADDPG:
                                  list(self.critic.parameters()), tau)
         self.updates += 1
         return {"critic_loss": critic_loss.item(), "actor_loss": actor_loss.item(),
-                "q_mean": q.mean().item()}
+                "q_mean": q[0].mean().item()}
 
     def _clip(self, net: torch.nn.Module) -> None:
         """Scale each agent's gradients so that their global norm is at most grad_clip."""
@@ -175,7 +187,7 @@ class DADDPG:
         (weight gradients of the critic are not computed in the actor pass).
         """
         b = batch_size or self.config.batch_size
-        fa, fc = self.actor.flops_per_sample(), self.critic.flops_per_sample()
+        fa, fc = self.actor.flops_per_sample(), self.critic.flops_per_sample()  # all stacks
         return b * (fa + fc + 3 * fc + 3 * fa + 2 * fc)
 
     # -------------------------------------------------------- saving/loading

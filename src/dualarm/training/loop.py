@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 import torch
 
-from dualarm.errors import InputError
+from dualarm.errors import DualarmError, InputError
 from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
 from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import TrainConfig
@@ -34,7 +34,7 @@ EVAL_COLUMNS = ["episode", "env_steps", "wall_time_s", "success_rate", "return_m
                 "steps_mean"]
 
 
-class TrainingDiverged(RuntimeError):
+class TrainingDiverged(DualarmError, RuntimeError):
     """A loss became NaN or infinite; the run stopped and its last good checkpoint is kept."""
 
 

@@ -19,12 +19,13 @@ from pathlib import Path
 import torch
 
 from dualarm.atomic import atomic_open
+from dualarm.errors import DualarmError
 
 CHECKPOINT_FORMAT = "dualarm-daddpg-checkpoint"
 CHECKPOINT_VERSION = 1
 
 
-class CheckpointError(Exception):
+class CheckpointError(DualarmError):
     """A checkpoint that cannot be used: missing, corrupt, or from an incompatible run."""
 
 

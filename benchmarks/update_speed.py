@@ -1,0 +1,85 @@
+"""DADDPG update speed: updates per second and GFLOP/s, next to this machine's matmul roofline.
+
+Run:  python benchmarks/update_speed.py [--threads 1] [--seconds 3]
+
+For each network size and batch size it times ``DADDPG.update`` on random transitions of
+the Baxter task's shapes (2 agents, 29 or 36 observations, 4 actions), counts the matmul
+FLOPs of one update (``DADDPG.update_flops``), and divides by the best single-matmul rate
+measured in the same run at the update's own layer shapes (the roofline an update could
+reach if it were nothing but matmuls).
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+
+import numpy as np
+import torch
+
+from dualarm.rl import DADDPG, DADDPGConfig
+from dualarm.rl.replay import ReplayBuffer
+
+
+def matmul_gflops(m: int, k: int, n: int, seconds: float) -> float:
+    """Best GFLOP/s of (m x k) @ (k x n) float32 over repeated timed bursts."""
+    a, b = torch.randn(m, k), torch.randn(k, n)
+    for _ in range(10):
+        a @ b
+    best, end = 0.0, time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        t = time.perf_counter()
+        for _ in range(20):
+            a @ b
+        best = max(best, 20 * 2 * m * k * n / (time.perf_counter() - t) / 1e9)
+    return best
+
+
+def time_updates(config: DADDPGConfig, obs: int, seconds: float) -> float:
+    """Median seconds per dual-agent update."""
+    agent = DADDPG(config, (obs, obs), (4, 4))
+    rng = np.random.default_rng(0)
+    buf = ReplayBuffer(20_000, 2, obs, 4)
+    n = 20_000
+    buf.add(rng.normal(size=(n, 2, obs)), rng.uniform(-1, 1, (n, 2, 4)), rng.normal(size=(n, 2)),
+            rng.normal(size=(n, 2, obs)), np.zeros(n))
+    agent.normalizer.update(rng.normal(size=(1000, 2, obs)))
+    for _ in range(5):
+        agent.update(buf.sample(rng, config.batch_size))
+    times, end = [], time.perf_counter() + seconds
+    while time.perf_counter() < end or len(times) < 5:
+        t = time.perf_counter()
+        agent.update(buf.sample(rng, config.batch_size))
+        times.append(time.perf_counter() - t)
+    return float(np.median(times)), agent.update_flops()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--threads", type=int, default=1, help="torch intra-op threads (default 1)")
+    parser.add_argument("--seconds", type=float, default=3.0, help="timing per case (default 3)")
+    parser.add_argument("--obs", type=int, default=36, help="observation width per agent (default 36)")
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+    print(f"torch {torch.__version__}, {args.threads} thread(s), {platform.processor() or platform.machine()}")
+    cases = [((256, 256, 256), 256, False), ((256, 256), 256, False), ((128, 128, 128), 256, False),
+             ((128, 128), 256, False), ((256, 256, 256), 128, False), ((256, 256), 256, True),
+             ((128, 128), 256, True)]
+    print(f"{'hidden':>16} {'batch':>5} {'twin':>4} {'GFLOP/upd':>9} {'ms/upd':>7} {'upd/s':>6} "
+          f"{'GFLOP/s':>7} {'roofline':>8} {'ratio':>5}")
+    for hidden, batch, twin in cases:
+        config = DADDPGConfig(hidden=hidden, batch_size=batch, twin_critics=twin, buffer_size=20_000)
+        dt, flops = time_updates(config, args.obs, args.seconds)
+        # the roofline: the matmul rate of the update's hidden layer shape (batch x h @ h x h)
+        peak = matmul_gflops(2 * batch, hidden[-1], hidden[-1], min(1.0, args.seconds))
+        rate = flops / dt / 1e9
+        print(f"{'x'.join(map(str, hidden)):>16} {batch:>5} {'yes' if twin else 'no':>4} "
+              f"{flops / 1e9:>9.3f} {dt * 1e3:>7.2f} {1 / dt:>6.1f} {rate:>7.1f} {peak:>8.1f} "
+              f"{rate / peak:>5.2f}")
+    big = matmul_gflops(1024, 1024, 1024, min(2.0, args.seconds))
+    print(f"large matmul (1024^3) peak: {big:.1f} GFLOP/s")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,56 @@
+"""A trained policy from a run directory, for evaluation, videos and trajectory export."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from dualarm.errors import InputError
+from dualarm.rl.daddpg import DADDPG
+from dualarm.training.config import TrainConfig
+from dualarm.training.run_dir import CheckpointError, RunPaths, load_checkpoint
+
+CHECKPOINTS = ("latest", "best")
+
+
+def load_policy(run_dir: str | Path, which: str = "best") -> tuple[TrainConfig, DADDPG, dict]:
+    """The run's config and a learner holding its actors and normaliser.
+
+    Args:
+        run_dir: a run directory of ``dualarm train``.
+        which: "best" (the best evaluation; falls back to "latest" if the run has not been
+            evaluated) or "latest" (the last checkpoint).
+
+    Returns:
+        (config, learner, info) with info {"checkpoint": path, "episodes": int or None,
+        "eval": the best evaluation or None}.
+    """
+    if which not in CHECKPOINTS:
+        raise InputError(f"checkpoint must be one of {CHECKPOINTS}, got {which!r}")
+    paths = RunPaths(run_dir)
+    if not paths.config.exists():
+        raise InputError(f"{paths.root}: not a run directory (no config.yaml)")
+    config = TrainConfig.load(paths.config)
+    path = paths.best if which == "best" and paths.best.exists() else paths.latest
+    payload = load_checkpoint(path)
+    from dualarm.training.loop import make_vector_env
+
+    vec = make_vector_env(config, 1)
+    agent = DADDPG(config.algo, vec.obs_sizes, vec.act_sizes, seed=config.seed)
+    vec.close()
+    try:
+        if "policy" in payload:
+            agent.load_policy_state_dict(payload["policy"])
+            info = {"checkpoint": path, "episodes": payload["eval"]["episode"], "eval": payload["eval"]}
+        else:
+            agent.load_state_dict(payload["learner"])
+            info = {"checkpoint": path, "episodes": payload["counters"]["episodes"], "eval": None}
+    except (KeyError, ValueError, RuntimeError) as exc:
+        raise CheckpointError(f"{path}: does not fit this run's networks ({exc})") from None
+    return config, agent, info
+
+
+def single_env_policy(agent: DADDPG):
+    """The deterministic policy as a callable obs (2, O) -> actions (2, U) for one env."""
+    return lambda obs: agent.act(np.asarray(obs)[None])[0]

@@ -1,0 +1,220 @@
+"""DADDPG's parts: stacked networks, Eqs. 13-15, agent independence, replay, normaliser, noise."""
+
+import numpy as np
+import pytest
+import torch
+
+from dualarm.rl import DADDPG, DADDPGConfig
+from dualarm.rl.daddpg import NonFiniteLoss
+from dualarm.rl.networks import StackedMLP
+from dualarm.rl.noise import GaussianNoise, OrnsteinUhlenbeckNoise, make_noise
+from dualarm.rl.normalizer import RunningNormalizer
+from dualarm.rl.replay import ReplayBuffer
+
+OBS, ACT = (5, 7), (2, 3)
+
+
+def small_agent(**changes) -> DADDPG:
+    config = DADDPGConfig(hidden=(16, 16), batch_size=8, buffer_size=100, **changes)
+    return DADDPG(config, OBS, ACT, seed=3)
+
+
+def random_batch(seed=0, b=8, rew=None) -> dict:
+    g = torch.Generator().manual_seed(seed)
+    obs = torch.randn(b, 2, 7, generator=g)
+    nxt = torch.randn(b, 2, 7, generator=g)
+    obs[:, 0, 5:] = 0.0                 # agent 0's observation is 5 wide, padded to 7
+    nxt[:, 0, 5:] = 0.0
+    act = torch.rand(b, 2, 3, generator=g) * 2 - 1
+    act[:, 0, 2] = 0.0                  # agent 0's action is 2 wide, padded to 3
+    return {"obs": obs, "next_obs": nxt, "act": act,
+            "rew": torch.randn(b, 2, generator=g) if rew is None else rew,
+            "done": (torch.rand(b, generator=g) < 0.3).float()}
+
+
+def agent_mlp(net: StackedMLP, i: int, x: torch.Tensor) -> torch.Tensor:
+    """Agent i's network evaluated as an ordinary MLP from its slice of the stacked weights."""
+    for layer in net.hidden:
+        x = torch.relu(x @ layer.weight[i] + layer.bias[i, 0])
+    x = x @ net.out.weight[i] + net.out.bias[i, 0]
+    return torch.tanh(x) if net.tanh_output else x
+
+
+def test_stacked_mlp_is_one_mlp_per_agent():
+    net = StackedMLP(2, 4, 3, (8, 8), tanh_output=True, generator=torch.Generator().manual_seed(0))
+    x = torch.randn(2, 10, 4)
+    y = net(x)
+    assert y.shape == (2, 10, 3)
+    for i in range(2):
+        torch.testing.assert_close(y[i], agent_mlp(net, i, x[i]))
+    assert not torch.equal(net.out.weight[0], net.out.weight[1])   # agents start different
+
+
+def test_update_follows_equations_13_to_15():
+    agent = small_agent()
+    agent.normalizer.update(np.random.default_rng(0).normal(size=(50, 2, 7)))
+    batch = random_batch()
+    norm = agent.normalizer.normalize
+    old = {k: [p.detach().clone() for p in getattr(agent, k).parameters()]
+           for k in ("actor", "critic", "actor_target", "critic_target")}
+    c = agent.config
+    o, o2 = norm(batch["obs"]), norm(batch["next_obs"])
+    s, s2 = o.reshape(8, -1), o2.reshape(8, -1)            # whole state (s_left, s_right)
+    expected_critic = 0.0
+    for i in range(2):
+        with torch.no_grad():
+            a2 = agent_mlp(agent.actor_target, i, o2[:, i]) * agent.action_mask[i, 0]
+            q2 = agent_mlp(agent.critic_target, i, torch.cat([s2, a2], -1))[:, 0]
+            y = batch["rew"][:, i] + c.gamma * (1 - batch["done"]) * q2           # Eq. 13 target
+            q = agent_mlp(agent.critic, i, torch.cat([s, batch["act"][:, i]], -1))[:, 0]
+        expected_critic += float(((y - q) ** 2).mean())
+    out = agent.update(batch)
+    assert out["critic_loss"] == pytest.approx(expected_critic, rel=1e-5)
+    # Eq. 15: theta' <- tau theta + (1 - tau) theta' with the updated online weights
+    tau = 1 - c.polyak
+    for online, target, before in ((agent.actor, agent.actor_target, old["actor_target"]),
+                                   (agent.critic, agent.critic_target, old["critic_target"])):
+        for p, pt, pb in zip(online.parameters(), target.parameters(), before):
+            torch.testing.assert_close(pt, tau * p.detach() + (1 - tau) * pb)
+    # both networks of both agents moved
+    for key in ("actor", "critic"):
+        for p, pb in zip(getattr(agent, key).parameters(), old[key]):
+            assert not torch.equal(p[0], pb[0]) and not torch.equal(p[1], pb[1])
+
+
+def test_agents_learn_independently_from_their_own_rewards():
+    """Agent 0's networks after updates do not depend on agent 1's rewards (stacked Adam and
+    per-agent gradient clipping are per agent), and vice versa."""
+    rew_a = torch.randn(8, 2, generator=torch.Generator().manual_seed(1))
+    rew_b = rew_a.clone()
+    rew_b[:, 1] = rew_b[:, 1] * 100 + 5
+    a, b = small_agent(grad_clip=0.5), small_agent(grad_clip=0.5)
+    for k in range(5):
+        a.update(random_batch(k, rew=rew_a))
+        b.update(random_batch(k, rew=rew_b))
+    for key in ("actor", "critic"):
+        for pa, pb in zip(getattr(a, key).parameters(), getattr(b, key).parameters()):
+            torch.testing.assert_close(pa[0], pb[0])
+            assert not torch.allclose(pa[1], pb[1])
+
+
+def test_actor_gradient_ascends_the_critic():
+    """Eq. 14: many actor steps against a fixed critic raise Q(s, mu(s))."""
+    agent = small_agent(action_l2=0.0)
+    batch = random_batch()
+    o = agent.normalizer.normalize(batch["obs"]).transpose(0, 1)
+    s = o.transpose(0, 1).reshape(1, 8, -1).expand(2, 8, -1)
+
+    def q_of_policy():
+        with torch.no_grad():
+            return agent.critic(torch.cat([s, agent.actor(o) * agent.action_mask], -1)).mean(dim=(1, 2))
+
+    before = q_of_policy()
+    critic_state = {k: v.clone() for k, v in agent.critic.state_dict().items()}
+    for _ in range(30):
+        agent.update(batch)
+        agent.critic.load_state_dict(critic_state)        # hold the critic fixed
+    assert (q_of_policy() > before).all()
+
+
+def test_actions_masked_and_bounded():
+    agent = small_agent()
+    obs = np.random.default_rng(0).normal(size=(6, 2, 7))
+    rng = np.random.default_rng(1)
+    for explore in (False, True):
+        a = agent.act(obs, rng, explore=explore)
+        assert a.shape == (6, 2, 3)
+        assert np.all(a[:, 0, 2] == 0.0)                # agent 0 has 2 actions
+        assert np.all(np.abs(a) <= 1.0)
+    assert np.array_equal(agent.act(obs), agent.act(obs))  # deterministic without noise
+
+
+def test_non_finite_loss_raises_and_changes_nothing():
+    agent = small_agent()
+    before = [p.detach().clone() for p in agent.critic.parameters()]
+    batch = random_batch(rew=torch.full((8, 2), float("nan")))
+    with pytest.raises(NonFiniteLoss, match="non-finite loss"):
+        agent.update(batch)
+    for p, pb in zip(agent.critic.parameters(), before):
+        assert torch.equal(p, pb)
+
+
+def test_state_dict_round_trip_continues_identically():
+    a, b = small_agent(), small_agent()
+    a.update(random_batch(0))
+    b.load_state_dict(a.state_dict())
+    ra, rb = a.update(random_batch(1)), b.update(random_batch(1))
+    assert ra == rb
+    other = DADDPG(DADDPGConfig(hidden=(16, 16), batch_size=8, buffer_size=100), (5, 8), ACT)
+    with pytest.raises(ValueError, match="obs_sizes"):
+        other.load_state_dict(a.state_dict())
+
+
+def test_config_validation_names_the_field():
+    with pytest.raises(ValueError, match="gamma"):
+        DADDPGConfig(gamma=1.5)
+    with pytest.raises(ValueError, match="noise"):
+        DADDPGConfig(noise="pink")
+    with pytest.raises(ValueError, match="unknown DADDPG field"):
+        DADDPGConfig.from_dict({"learning_rate": 1e-3})
+    assert DADDPGConfig.from_dict(DADDPGConfig().to_dict()) == DADDPGConfig()
+
+
+def test_update_flops_counts_the_matmuls():
+    agent = small_agent()
+    fa = 2 * 2 * (7 * 16 + 16 * 16 + 16 * 3)
+    fc = 2 * 2 * (17 * 16 + 16 * 16 + 16 * 1)
+    assert agent.actor.flops_per_sample() == fa and agent.critic.flops_per_sample() == fc
+    assert agent.update_flops(10) == 10 * (4 * fa + 6 * fc)
+
+
+def test_normalizer_matches_numpy_and_clips():
+    x = np.random.default_rng(0).normal(3.0, 2.0, size=(500, 2, 4))
+    norm = RunningNormalizer(2, 4, clip=1.5)
+    norm.update(x[:200])
+    norm.update(x[200:])
+    np.testing.assert_allclose(norm.mean.numpy(), x.mean(axis=0), rtol=1e-5)
+    np.testing.assert_allclose(norm.std.numpy(), x.std(axis=0), rtol=1e-4)
+    y = norm.normalize(torch.as_tensor(x, dtype=torch.float32)).numpy()
+    assert y.max() <= 1.5 and y.min() >= -1.5
+    inside = np.abs((x - x.mean(0)) / x.std(0)) < 1.4
+    np.testing.assert_allclose(y[inside], ((x - x.mean(0)) / x.std(0))[inside], atol=1e-4)
+    restored = RunningNormalizer(2, 4, clip=1.5)
+    restored.load_state_dict(norm.state_dict())
+    assert torch.equal(restored.mean, norm.mean) and torch.equal(restored.std, norm.std)
+
+
+def test_replay_wraps_around_and_reloads_identically():
+    buf = ReplayBuffer(10, 2, 3, 2)
+    for k in range(4):                                     # 16 transitions into 10 slots
+        n = 4
+        val = np.arange(k * n, (k + 1) * n, dtype=float)
+        buf.add(np.broadcast_to(val[:, None, None], (n, 2, 3)), np.zeros((n, 2, 2)),
+                np.zeros((n, 2)), np.zeros((n, 2, 3)), np.zeros(n))
+    assert len(buf) == 10
+    assert sorted(set(buf.data["obs"][:, 0, 0].astype(int))) == list(range(6, 16))
+    copy = ReplayBuffer(10, 2, 3, 2)
+    copy.load_state_dict(buf.state_dict())
+    s1 = buf.sample(np.random.default_rng(5), 6)
+    s2 = copy.sample(np.random.default_rng(5), 6)
+    for key in s1:
+        assert torch.equal(s1[key], s2[key])
+    copy.add(np.full((1, 2, 3), 99.0), np.zeros((1, 2, 2)), np.zeros((1, 2)), np.zeros((1, 2, 3)), np.zeros(1))
+    buf.add(np.full((1, 2, 3), 99.0), np.zeros((1, 2, 2)), np.zeros((1, 2)), np.zeros((1, 2, 3)), np.zeros(1))
+    assert np.array_equal(copy.data["obs"], buf.data["obs"])
+    with pytest.raises(ValueError, match="obs"):
+        ReplayBuffer(10, 2, 4, 2).load_state_dict(buf.state_dict())
+
+
+def test_noise_processes():
+    rng = np.random.default_rng(0)
+    g = GaussianNoise(0.3).sample(rng, (20000,))
+    assert abs(g.std() - 0.3) < 0.01 and abs(g.mean()) < 0.01
+    ou = OrnsteinUhlenbeckNoise(0.2, theta=0.15)
+    xs = np.array([ou.sample(rng, (2, 2, 1)) for _ in range(2000)])
+    lag1 = np.corrcoef(xs[:-1, 0, 0, 0], xs[1:, 0, 0, 0])[0, 1]
+    assert lag1 > 0.7                                       # temporally correlated
+    ou.reset(np.array([True, False]))
+    assert np.all(ou.x[0] == 0) and np.any(ou.x[1] != 0)
+    with pytest.raises(ValueError, match="noise"):
+        make_noise("pink", 0.1, 0.1)

@@ -1,0 +1,173 @@
+"""The training loop: learning a toy task, determinism, kill and resume, bad checkpoints, NaN."""
+
+import csv
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+import torch
+
+from dualarm.envs.point_mass import TwoPointMassEnv
+from dualarm.rl import DADDPGConfig
+from dualarm.training import TrainConfig, Trainer, TrainingDiverged, resume, train
+from dualarm.training.run_dir import CheckpointError, load_checkpoint
+from dualarm.training.vector import ParallelEnvVector
+
+TOY_ALGO = DADDPGConfig(hidden=(64, 64), batch_size=128, updates_per_step=0.5,
+                        warmup_steps=500, buffer_size=100_000)
+
+
+def rows(path, drop=("wall_time_s",)):
+    with open(path, newline="") as f:
+        return [{k: v for k, v in r.items() if k not in drop} for r in csv.DictReader(f)]
+
+
+def test_daddpg_solves_the_two_point_mass_task(tmp_path):
+    """Learning is tested by learning: >= 90% evaluation success (50 fixed episodes)."""
+    config = TrainConfig(condition="none", episodes=400, num_envs=8, eval_every=100,
+                         eval_episodes=50, algo=TOY_ALGO, seed=1)
+    result = train(config, tmp_path / "run", make_env=TwoPointMassEnv, progress=False)
+    assert result.episodes == 400
+    assert result.last_eval["success_rate"] >= 0.9, result.last_eval
+    evals = rows(tmp_path / "run" / "eval.csv")
+    assert float(evals[0]["success_rate"]) < 0.9          # it was not solved before learning
+    metrics = rows(tmp_path / "run" / "metrics.csv")
+    assert [int(r["episode"]) for r in metrics] == list(range(1, 401))
+    assert (tmp_path / "run" / "checkpoints" / "best_policy.pt").exists()
+    assert any(p.name.startswith("events.out.tfevents") for p in (tmp_path / "run" / "events").iterdir())
+
+
+def test_same_seed_gives_identical_baxter_metrics(tmp_path):
+    algo = DADDPGConfig(hidden=(32, 32), batch_size=32, warmup_steps=200, buffer_size=5000)
+    config = TrainConfig(condition="none", episodes=20, num_envs=4, eval_every=0, algo=algo,
+                         task={"max_episode_steps": 20}, seed=7)
+    train(config, tmp_path / "a", progress=False)
+    train(config, tmp_path / "b", progress=False)
+    a, b = rows(tmp_path / "a" / "metrics.csv"), rows(tmp_path / "b" / "metrics.csv")
+    assert len(a) == 20 and a == b
+    train(config.with_(seed=8), tmp_path / "c", progress=False)
+    assert rows(tmp_path / "c" / "metrics.csv") != a
+
+
+KILLED_RUN = textwrap.dedent("""
+    import sys
+    from dualarm.envs.point_mass import TwoPointMassEnv
+    from dualarm.rl import DADDPGConfig
+    from dualarm.training import TrainConfig, train
+    algo = DADDPGConfig(hidden=(32, 32), batch_size=64, updates_per_step=0.5, warmup_steps=300,
+                        buffer_size=50_000)
+    config = TrainConfig(condition="none", episodes=160, num_envs=8, eval_every=40,
+                         eval_episodes=8, checkpoint_every=16, algo=algo, seed=3)
+    train(config, sys.argv[1], make_env=TwoPointMassEnv, progress=False)
+""")
+
+
+def test_sigkill_and_resume_loses_and_duplicates_nothing(tmp_path):
+    """A run killed with SIGKILL mid-way and resumed ends with the very episodes (and
+    evaluations) of an uninterrupted run."""
+    script = tmp_path / "run.py"
+    script.write_text(KILLED_RUN)
+    killed = tmp_path / "killed"
+    proc = subprocess.Popen([sys.executable, str(script), str(killed)])
+    metrics = killed / "metrics.csv"
+    deadline = time.time() + 120
+    while time.time() < deadline and proc.poll() is None:
+        if metrics.exists() and len(metrics.read_text().splitlines()) > 1 + 70:
+            break
+        time.sleep(0.05)
+    assert proc.poll() is None, "the run ended before it could be killed"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    done_before = len(rows(metrics))
+    assert 70 <= done_before < 160
+    checkpoint = load_checkpoint(killed / "checkpoints" / "latest.pt")
+    assert checkpoint["counters"]["episodes"] <= done_before
+
+    result = resume(killed, make_env=TwoPointMassEnv, progress=False)
+    assert result.episodes == 160
+
+    reference = tmp_path / "reference"
+    exec(compile(KILLED_RUN.replace("sys.argv[1]", repr(str(reference))), "ref", "exec"), {})
+    resumed = rows(metrics)
+    assert [int(r["episode"]) for r in resumed] == list(range(1, 161))
+    assert resumed == rows(reference / "metrics.csv")
+    assert rows(killed / "eval.csv") == rows(reference / "eval.csv")
+
+
+def small_toy_config(**changes):
+    algo = DADDPGConfig(hidden=(16, 16), batch_size=32, warmup_steps=100, buffer_size=5000)
+    base = dict(condition="none", episodes=32, num_envs=8, eval_every=0, checkpoint_every=8,
+                algo=algo)
+    base.update(changes)
+    return TrainConfig(**base)
+
+
+def test_resume_extends_a_finished_run(tmp_path):
+    train(small_toy_config(), tmp_path / "run", make_env=TwoPointMassEnv, progress=False)
+    result = resume(tmp_path / "run", episodes=48, make_env=TwoPointMassEnv, progress=False)
+    assert result.episodes == 48
+    assert [int(r["episode"]) for r in rows(tmp_path / "run" / "metrics.csv")] == list(range(1, 49))
+
+
+def test_corrupt_or_foreign_checkpoints_give_clear_errors(tmp_path):
+    run = tmp_path / "run"
+    train(small_toy_config(), run, make_env=TwoPointMassEnv, progress=False)
+    latest = run / "checkpoints" / "latest.pt"
+    good = latest.read_bytes()
+    latest.write_bytes(good[: len(good) // 2])
+    with pytest.raises(CheckpointError, match="latest.pt.*corrupt or truncated"):
+        Trainer.resume(run, make_env=TwoPointMassEnv, progress=False)
+    latest.write_bytes(b"not a checkpoint at all")
+    with pytest.raises(CheckpointError, match="latest.pt"):
+        Trainer.resume(run, make_env=TwoPointMassEnv, progress=False)
+    torch.save({"format": "something-else"}, latest)
+    with pytest.raises(CheckpointError, match="not a dualarm DADDPG checkpoint"):
+        Trainer.resume(run, make_env=TwoPointMassEnv, progress=False)
+    latest.write_bytes(good)
+    config_text = (run / "config.yaml").read_text()
+    (run / "config.yaml").write_text(config_text.replace("seed: 0", "seed: 5"))
+    with pytest.raises(CheckpointError, match="different settings.*seed"):
+        Trainer.resume(run, make_env=TwoPointMassEnv, progress=False)
+    with pytest.raises(Exception, match="already holds a run"):
+        Trainer.start(small_toy_config(), run, make_env=TwoPointMassEnv, progress=False)
+
+
+class PoisonedPointMass(TwoPointMassEnv):
+    """Rewards turn NaN after 200 steps of this copy."""
+
+    def step(self, actions):
+        obs, rew, term, trunc, info = super().step(actions)
+        self.total = getattr(self, "total", 0) + 1
+        if self.total > 200:
+            rew = {a: float("nan") for a in rew}
+        return obs, rew, term, trunc, info
+
+
+def test_nan_loss_stops_the_run_and_keeps_the_last_good_checkpoint(tmp_path):
+    run = tmp_path / "run"
+    with pytest.raises(TrainingDiverged, match="non-finite loss.*last good checkpoint"):
+        train(small_toy_config(episodes=200), run, make_env=PoisonedPointMass, progress=False)
+    saved = load_checkpoint(run / "checkpoints" / "latest.pt")
+    assert 0 < saved["counters"]["episodes"] < 200
+    for p in saved["learner"]["critic"].values():
+        assert torch.isfinite(p).all()
+
+
+class ThreeAgents(TwoPointMassEnv):
+    def __init__(self):
+        super().__init__()
+        self.possible_agents = ["a", "b", "c"]
+
+
+def test_generic_env_adapter_checks_the_env():
+    with pytest.raises(ValueError, match="3 agents.*needs two"):
+        ParallelEnvVector(ThreeAgents)
+    vec = ParallelEnvVector(TwoPointMassEnv, 2)
+    assert vec.obs_sizes == (4, 6) and vec.act_sizes == (2, 2)
+    obs = vec.reset(0, 1)
+    assert obs.shape == (2, 6) and np.all(obs[0, 4:] == 0)      # left padded to 6
