@@ -220,6 +220,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     from dualarm.cli_env import add_env_commands
     add_env_commands(sub)
+    from dualarm.cli_demos import add_demo_commands
+    add_demo_commands(sub)
+    from dualarm.cli_train import add_train_commands
+    add_train_commands(sub)
     return parser
 
 

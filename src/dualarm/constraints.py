@@ -25,6 +25,8 @@ JOINT_COLUMNS = tuple(f"{arm}_{joint}" for arm in ARMS for joint in BAXTER_JOINT
 DEFAULT_C0 = (0.01, 0.01, 0.05)
 #: Version of the YAML file layout written by :meth:`ConstraintSet.save`.
 SCHEMA_VERSION = 1
+#: Conditions with a shipped constraints file (``default_constraints_path``).
+DEFAULT_CONDITIONS = ("single", "multi")
 
 _N_JOINTS = len(JOINT_COLUMNS)
 _N_ARM = len(BAXTER_JOINT_NAMES)
@@ -38,6 +40,26 @@ _SEGMENT_KEYS = ("subtasks", "lower", "upper")
 #: Validated c0 tuples -> ((3,) float array, same as Python floats), so the per-step reward
 #: skips re-validation.
 _C0_CACHE: dict[tuple, tuple[np.ndarray, tuple[float, ...]]] = {}
+
+
+def default_constraints_path(condition: str) -> Path:
+    """The shipped constraints file of a guided condition.
+
+    Both were extracted (Eq. 12) from the shipped default demonstrations
+    (``dualarm.demos.DEFAULT_DEMO_DIR``): "single" is C1 (one segment, reach+grasp+align),
+    "multi" is C2 (reach+grasp) and C3 (align); see docs/constraints.md.
+
+    Args:
+        condition: "single" or "multi".
+    Returns:
+        Path of ``dualarm/data/constraints/<condition>.yaml`` inside the installed package.
+    Raises:
+        ValueError: any other condition.
+    """
+    if condition not in DEFAULT_CONDITIONS:
+        raise ValueError(f"condition must be one of {', '.join(DEFAULT_CONDITIONS)} to have default "
+                         f"constraints, got {condition!r}")
+    return Path(__file__).resolve().parent / "data" / "constraints" / f"{condition}.yaml"
 
 
 # --------------------------------------------------------------------------- helpers
@@ -482,8 +504,7 @@ class ConstraintSet:
         provenance = d.get("provenance")
         if provenance is None:
             provenance = {}
-        if not isinstance(provenance, Mapping):
-            raise InputError(f"provenance: expected a mapping, got {type(provenance).__name__}", source=src)
+        _check_provenance(provenance, src)
         raw_segments = d["segments"]
         if not isinstance(raw_segments, list):
             raise InputError(f"segments: expected a list, got {type(raw_segments).__name__}", source=src)
@@ -542,6 +563,34 @@ class ConstraintSet:
             problem = getattr(e, "problem", None) or str(e).splitlines()[0]
             raise InputError(f"YAML syntax error{where}: {problem}", source=src) from None
         return cls.from_dict(data, source=src)
+
+
+def _check_provenance(provenance: Any, source: str | None) -> None:
+    """Provenance is free-form; only what the extractor writes is checked where it appears.
+
+    A mapping in ``demos`` (a list) with ``file`` must name it with a non-empty string, and
+    any ``sha256`` there or in ``labels`` must be 64 lower-case hexadecimal digits.
+    """
+    if not isinstance(provenance, Mapping):
+        raise InputError(f"provenance: expected a mapping, got {type(provenance).__name__}", source=source)
+
+    def digest(value: Any, where: str) -> None:
+        if not (isinstance(value, str) and len(value) == 64 and all(c in "0123456789abcdef" for c in value)):
+            raise InputError(f"{where}: expected 64 lower-case hexadecimal digits, got {value!r}", source=source)
+
+    demos = provenance.get("demos")
+    if isinstance(demos, list):
+        for i, item in enumerate(demos):
+            if not isinstance(item, Mapping):
+                continue
+            if "file" in item and not (isinstance(item["file"], str) and item["file"]):
+                raise InputError(f"provenance.demos[{i}].file: expected a file name, got {item['file']!r}",
+                                 source=source)
+            if "sha256" in item:
+                digest(item["sha256"], f"provenance.demos[{i}].sha256")
+    labels = provenance.get("labels")
+    if isinstance(labels, Mapping) and "sha256" in labels:
+        digest(labels["sha256"], "provenance.labels.sha256")
 
 
 def _clip_to_limits(lo: np.ndarray, up: np.ndarray, where: str,
