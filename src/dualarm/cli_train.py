@@ -40,12 +40,15 @@ def cmd_train(args: argparse.Namespace) -> int:
         print(f"\nstopped; continue with: dualarm train --resume {trainer.paths.root}",
               file=sys.stderr)
         return 130
+    from dualarm.training.plots import plot_run
+
+    curves = plot_run(result.out, result.out / "curves.png")
     line = f"done: {result.episodes} episodes, {result.env_steps} steps, {result.wall_time_s:.0f} s"
     if result.last_eval:
         line += (f"; last evaluation: success {result.last_eval['success_rate']:.2f}, "
                  f"return {result.last_eval['return_mean']:.1f}")
     print(line)
-    print(f"run directory: {result.out} (metrics.csv, eval.csv, events/ for TensorBoard)")
+    print(f"run directory: {result.out} (metrics.csv, eval.csv, {curves.name}, events/ for TensorBoard)")
     return 0
 
 
