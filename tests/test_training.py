@@ -18,8 +18,9 @@ from dualarm.training import TrainConfig, Trainer, TrainingDiverged, resume, tra
 from dualarm.training.run_dir import CheckpointError, load_checkpoint
 from dualarm.training.vector import ParallelEnvVector
 
-TOY_ALGO = DADDPGConfig(hidden=(64, 64), batch_size=128, updates_per_step=0.5,
-                        warmup_steps=500, buffer_size=100_000)
+# Plappert's target and L2 settings suit the toy's returns (about -25..10); see docs/training.md.
+TOY_ALGO = DADDPGConfig(hidden=(64, 64), batch_size=128, updates_per_step=0.5, polyak=0.95,
+                        action_l2=1.0, warmup_steps=500, buffer_size=100_000)
 
 
 def rows(path, drop=("wall_time_s",)):
@@ -28,16 +29,17 @@ def rows(path, drop=("wall_time_s",)):
 
 
 def test_daddpg_solves_the_two_point_mass_task(tmp_path):
-    """Learning is tested by learning: >= 90% evaluation success (50 fixed episodes)."""
-    config = TrainConfig(condition="none", episodes=400, num_envs=8, eval_every=100,
+    """Learning is tested by learning: >= 90% evaluation success (50 fixed episodes) after
+    600 episodes, about 40 s on one core (seeds 0-3 measured: 1.0, 0.96, 1.0, 1.0)."""
+    config = TrainConfig(condition="none", episodes=600, num_envs=8, eval_every=100,
                          eval_episodes=50, algo=TOY_ALGO, seed=1)
     result = train(config, tmp_path / "run", make_env=TwoPointMassEnv, progress=False)
-    assert result.episodes == 400
+    assert result.episodes == 600
     assert result.last_eval["success_rate"] >= 0.9, result.last_eval
     evals = rows(tmp_path / "run" / "eval.csv")
     assert float(evals[0]["success_rate"]) < 0.9          # it was not solved before learning
     metrics = rows(tmp_path / "run" / "metrics.csv")
-    assert [int(r["episode"]) for r in metrics] == list(range(1, 401))
+    assert [int(r["episode"]) for r in metrics] == list(range(1, 601))
     assert (tmp_path / "run" / "checkpoints" / "best_policy.pt").exists()
     assert any(p.name.startswith("events.out.tfevents") for p in (tmp_path / "run" / "events").iterdir())
 
