@@ -191,44 +191,37 @@ class DADDPG:
         return b * (fa + fc + 3 * fc + 3 * fa + 2 * fc)
 
     # -------------------------------------------------------- saving/loading
+    _PARTS = ("actor", "critic", "actor_target", "critic_target", "actor_opt", "critic_opt",
+              "normalizer", "noise")
+    _POLICY_PARTS = ("actor", "normalizer")
+
+    def _shapes(self) -> dict:
+        return {"obs_sizes": list(self.obs_sizes), "act_sizes": list(self.act_sizes),
+                "hidden": list(self.config.hidden)}
+
+    def _restore(self, state: dict, parts: tuple[str, ...], what: str) -> None:
+        """Load ``parts`` from ``state`` after checking the network shapes match."""
+        for key, mine in self._shapes().items():
+            if list(state[key]) != mine:
+                raise ValueError(f"{key} {tuple(state[key])} of the saved {what} does not match "
+                                 f"this one's {tuple(mine)}")
+        for part in parts:
+            getattr(self, part).load_state_dict(state[part])
+
     def state_dict(self) -> dict:
         """Everything the learner needs to continue exactly (tensors and plain values)."""
-        return {"actor": self.actor.state_dict(), "critic": self.critic.state_dict(),
-                "actor_target": self.actor_target.state_dict(),
-                "critic_target": self.critic_target.state_dict(),
-                "actor_opt": self.actor_opt.state_dict(), "critic_opt": self.critic_opt.state_dict(),
-                "normalizer": self.normalizer.state_dict(), "noise": self.noise.state_dict(),
-                "updates": self.updates, "obs_sizes": list(self.obs_sizes),
-                "act_sizes": list(self.act_sizes), "hidden": list(self.config.hidden)}
+        return {**{p: getattr(self, p).state_dict() for p in self._PARTS},
+                "updates": self.updates, **self._shapes()}
 
     def load_state_dict(self, state: dict) -> None:
         """Restore from ``state_dict()``; raises ValueError naming what does not match."""
-        for key, mine in (("obs_sizes", self.obs_sizes), ("act_sizes", self.act_sizes),
-                          ("hidden", self.config.hidden)):
-            if tuple(state[key]) != tuple(mine):
-                raise ValueError(f"{key} {tuple(state[key])} of the saved learner does not match "
-                                 f"this one's {tuple(mine)}")
-        self.actor.load_state_dict(state["actor"])
-        self.critic.load_state_dict(state["critic"])
-        self.actor_target.load_state_dict(state["actor_target"])
-        self.critic_target.load_state_dict(state["critic_target"])
-        self.actor_opt.load_state_dict(state["actor_opt"])
-        self.critic_opt.load_state_dict(state["critic_opt"])
-        self.normalizer.load_state_dict(state["normalizer"])
-        self.noise.load_state_dict(state["noise"])
+        self._restore(state, self._PARTS, "learner")
         self.updates = int(state["updates"])
 
     def policy_state_dict(self) -> dict:
         """What acting needs: the actors and the normaliser (small; for ``best`` policies)."""
-        return {"actor": self.actor.state_dict(), "normalizer": self.normalizer.state_dict(),
-                "obs_sizes": list(self.obs_sizes), "act_sizes": list(self.act_sizes),
-                "hidden": list(self.config.hidden)}
+        return {**{p: getattr(self, p).state_dict() for p in self._POLICY_PARTS}, **self._shapes()}
 
     def load_policy_state_dict(self, state: dict) -> None:
-        for key, mine in (("obs_sizes", self.obs_sizes), ("act_sizes", self.act_sizes),
-                          ("hidden", self.config.hidden)):
-            if tuple(state[key]) != tuple(mine):
-                raise ValueError(f"{key} {tuple(state[key])} of the saved policy does not match "
-                                 f"this one's {tuple(mine)}")
-        self.actor.load_state_dict(state["actor"])
-        self.normalizer.load_state_dict(state["normalizer"])
+        """Restore from ``policy_state_dict()``."""
+        self._restore(state, self._POLICY_PARTS, "policy")
