@@ -45,7 +45,7 @@ class TrainConfig:
     eval_every: int = 100
     eval_episodes: int = 50
     checkpoint_every: int = 0
-    checkpoint_minutes: float = 5.0
+    checkpoint_minutes: float = 2.0
     torch_threads: int = 1
     algo: DADDPGConfig = field(default_factory=DADDPGConfig)
 
