@@ -81,3 +81,4 @@ def test_bad_inputs_name_what_is_wrong(tmp_path, capsys):
     assert main(["train", "--condition", "single", "--constraints", str(tmp_path / "missing.yaml"),
                  "--out", str(tmp_path / "r2")]) == 2
     assert "missing.yaml" in capsys.readouterr().err
+    assert not (tmp_path / "r2").exists()                 # nothing written for a bad start

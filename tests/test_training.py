@@ -125,8 +125,10 @@ def test_corrupt_or_foreign_checkpoints_give_clear_errors(tmp_path):
     with pytest.raises(CheckpointError, match="latest.pt.*corrupt or truncated"):
         Trainer.resume(run, make_env=TwoPointMassEnv, progress=False)
     latest.write_bytes(b"not a checkpoint at all")
+    config_before = (run / "config.yaml").read_text()
     with pytest.raises(CheckpointError, match="latest.pt"):
-        Trainer.resume(run, make_env=TwoPointMassEnv, progress=False)
+        Trainer.resume(run, episodes=64, make_env=TwoPointMassEnv, progress=False)
+    assert (run / "config.yaml").read_text() == config_before   # a refused resume changes nothing
     torch.save({"format": "something-else"}, latest)
     with pytest.raises(CheckpointError, match="not a dualarm DADDPG checkpoint"):
         Trainer.resume(run, make_env=TwoPointMassEnv, progress=False)

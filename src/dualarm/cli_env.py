@@ -35,7 +35,7 @@ def cmd_env_video(args: argparse.Namespace) -> int:
     frames = []
     for k in _progress(range(args.episodes), args.episodes, "episodes"):
         episode = run_episode(env, policy, args.seed + k, camera=args.camera)
-        frames.extend(episode.frames + [episode.frames[-1]] * int(0.6 * args.fps))  # pause at the end
+        frames.extend(with_end_pause(episode.frames, args.fps))
         print(f"episode {k + 1} (seed {args.seed + k}): {'success' if episode.success else 'failure'} "
               f"in {episode.steps} steps, returns left {episode.returns[0]:.1f} right "
               f"{episode.returns[1]:.1f}", file=sys.stderr)
@@ -86,6 +86,18 @@ def cmd_env_strip(args: argparse.Namespace) -> int:
     return 0
 
 
+def frame_options(p: argparse.ArgumentParser) -> None:
+    """--camera, --width and --height of commands that render frames."""
+    p.add_argument("--camera", choices=("front", "side"), default="front")
+    p.add_argument("--width", type=int, default=640)
+    p.add_argument("--height", type=int, default=480)
+
+
+def with_end_pause(frames: list, fps: float) -> list:
+    """The frames with the last one held for 0.6 s, so a video does not end abruptly."""
+    return frames + [frames[-1]] * int(0.6 * fps)
+
+
 def add_env_commands(sub) -> None:
     """Add the ``env`` command group to the top-level subparsers."""
     env = sub.add_parser("env", help="the Baxter reach-grasp-align task: videos, expert, frames",
@@ -103,9 +115,7 @@ def add_env_commands(sub) -> None:
 
     def rendering_options(p: argparse.ArgumentParser) -> None:
         p.add_argument("--policy", choices=("expert", "random"), default="expert")
-        p.add_argument("--camera", choices=("front", "side"), default="front")
-        p.add_argument("--width", type=int, default=640)
-        p.add_argument("--height", type=int, default=480)
+        frame_options(p)
 
     video = esub.add_parser("video", help="render episodes of a policy to MP4 or GIF",
                             description="Run episodes of a policy and write them as a video.")

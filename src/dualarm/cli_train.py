@@ -31,7 +31,6 @@ def cmd_train(args: argparse.Namespace) -> int:
         config = config.with_(**changes)
         if config.condition == "none" and config.constraints:
             raise SystemExit("dualarm: error: --constraints needs --condition single or multi")
-        config.load_constraints()          # a bad constraints file fails now, not after set-up
         out = args.out or Path("runs") / f"{config.condition}-seed{config.seed}"
         trainer = Trainer.start(config, out)
     try:
@@ -94,10 +93,11 @@ def _episode(args: argparse.Namespace, camera: str | None):
 
 def cmd_play(args: argparse.Namespace) -> int:
     """Render an episode of the learned policy to MP4 or GIF."""
+    from dualarm.cli_env import with_end_pause
     from dualarm.envs.rendering import write_video
 
     env, episode, _, info = _episode(args, args.camera)
-    frames = episode.frames + [episode.frames[-1]] * int(0.6 * args.fps)
+    frames = with_end_pause(episode.frames, args.fps)
     path = write_video(args.output, frames, fps=args.fps)
     print(f"{info['checkpoint']}: seed {args.seed}, {'success' if episode.success else 'failure'} in "
           f"{episode.steps} steps, returns left {episode.returns[0]:.1f} right {episode.returns[1]:.1f}")
@@ -133,6 +133,8 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def add_train_commands(sub) -> None:
     """Add ``train``, ``eval``, ``play`` and ``export`` to the top-level subparsers."""
+    from dualarm.cli_env import frame_options
+
     train = sub.add_parser("train", help="train DADDPG on the Baxter task (resumable)",
                            description="Train the dual-agent DDPG on the reach-grasp-align task. "
                                        "Writes config.yaml, metrics.csv, eval.csv, TensorBoard "
@@ -169,9 +171,7 @@ def add_train_commands(sub) -> None:
     run_options(play)
     play.add_argument("-o", "--output", type=Path, required=True, metavar="FILE.mp4")
     play.add_argument("--seed", type=int, default=0)
-    play.add_argument("--camera", choices=("front", "side"), default="front")
-    play.add_argument("--width", type=int, default=640)
-    play.add_argument("--height", type=int, default=480)
+    frame_options(play)
     play.add_argument("--fps", type=float, default=12.0)
     play.set_defaults(func=cmd_play)
 

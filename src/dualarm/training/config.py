@@ -12,9 +12,8 @@ from dualarm.rl.config import DADDPGConfig
 
 #: TaskConfig fields a run may override (the rest keep the task's defaults).
 TASK_OVERRIDES = ("control", "goal", "success_at", "max_episode_steps", "joint_angles_in_obs",
-                  "reach_threshold",
-                  "terminate_on_success", "coordinate_bonus", "grasp_bonus", "reach_bonus",
-                  "guide_c0")
+                  "reach_threshold", "terminate_on_success", "coordinate_bonus", "grasp_bonus",
+                  "reach_bonus", "guide_c0")
 
 
 @dataclass(frozen=True)

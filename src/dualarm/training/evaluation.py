@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dualarm.training.rounds import run_round
 from dualarm.training.vector import EVAL_SEED_BASE, VectorEnv, seeds_for
 
 
@@ -46,20 +47,7 @@ def evaluate(act, vec: VectorEnv, episodes: int, seed_base: int = EVAL_SEED_BASE
     returns = np.zeros((episodes, 2))
     steps = np.zeros(episodes, dtype=np.int64)
     for first in range(0, episodes, vec.num_envs):
-        n = min(vec.num_envs, episodes - first)
-        obs = np.zeros((vec.num_envs, 2, vec.obs_size))
-        active = np.zeros(vec.num_envs, dtype=bool)
-        active[:n] = True
-        for i in range(n):
-            obs[i] = vec.reset(i, seeds[first + i])
-        rows = first + np.arange(n)
-        while active.any():
-            step = vec.step(act(obs), active)
-            live = active[:n]
-            returns[rows[live]] += step.reward[:n][live]
-            steps[rows[live]] += 1
-            ended = active & (step.terminated | step.truncated)
-            success[rows[ended[:n]]] = step.success[:n][ended[:n]]
-            active &= ~ended
-            obs = step.obs
+        r = run_round(vec, seeds[first:first + vec.num_envs], act)
+        rows = slice(first, first + len(r.steps))
+        success[rows], returns[rows], steps[rows] = r.success, r.returns, r.steps
     return EvalResult(success, returns, steps)

@@ -26,6 +26,7 @@ from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
 from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import TrainConfig
 from dualarm.training.evaluation import evaluate
+from dualarm.training.rounds import run_round
 from dualarm.training.run_dir import (CheckpointError, CsvLog, RunPaths, load_checkpoint,
                                       save_checkpoint)
 from dualarm.training.vector import BaxterVector, ParallelEnvVector, VectorEnv, seeds_for
@@ -50,11 +51,16 @@ class TrainResult:
 
 
 def make_vector_env(config: TrainConfig, num_envs: int,
-                    make_env: Callable[[], object] | None = None) -> VectorEnv:
-    """Copies of the run's environment: the Baxter task, or ``make_env()`` (a ParallelEnv)."""
+                    make_env: Callable[[], object] | None = None, constraints=None) -> VectorEnv:
+    """Copies of the run's environment: the Baxter task, or ``make_env()`` (a ParallelEnv).
+
+    ``constraints``: the run's ``ConstraintSet`` if already loaded (else read from the config).
+    """
     if make_env is not None:
         return ParallelEnvVector(make_env, num_envs)
-    return BaxterVector(config.task_config(), config.load_constraints(), num_envs)
+    if constraints is None:
+        constraints = config.load_constraints()
+    return BaxterVector(config.task_config(), constraints, num_envs)
 
 
 class Trainer:
@@ -76,8 +82,10 @@ class Trainer:
         self.paths = paths
         self.progress = progress
         torch.set_num_threads(config.torch_threads)
-        self.vec = make_vector_env(config, config.num_envs, make_env)
-        self.eval_vec = (make_vector_env(config, min(config.num_envs, config.eval_episodes), make_env)
+        constraints = None if make_env is not None else config.load_constraints()
+        self.vec = make_vector_env(config, config.num_envs, make_env, constraints)
+        self.eval_vec = (make_vector_env(config, min(config.num_envs, config.eval_episodes),
+                                         make_env, constraints)
                          if config.eval_every and config.eval_episodes else None)
         v = self.vec
         self.agent = DADDPG(config.algo, v.obs_sizes, v.act_sizes, seed=config.seed)
@@ -105,12 +113,12 @@ class Trainer:
     @classmethod
     def start(cls, config: TrainConfig, out: str | Path, make_env=None,
               progress: bool = True) -> "Trainer":
-        """A new run in ``out`` (which must not hold a run already)."""
+        """A new run in ``out`` (which must not hold a run already). Nothing is written
+        until the environment and the learner are built (bad constraints leave no directory)."""
         paths = RunPaths(out)
         if paths.config.exists() or paths.latest.exists():
             raise InputError(f"{paths.root} already holds a run: resume it with "
                              f"`dualarm train --resume {paths.root}` or choose another --out")
-        paths.root.mkdir(parents=True, exist_ok=True)
         trainer = cls(config, paths, make_env, progress)
         config.save(paths.config)
         trainer.metrics.truncate(0)
@@ -128,10 +136,11 @@ class Trainer:
         config = TrainConfig.load(paths.config)
         if episodes is not None:
             config = config.with_(episodes=episodes)
-            config.save(paths.config)
         trainer = cls(config, paths, make_env, progress)
         if paths.latest.exists():
             trainer.load(load_checkpoint(paths.latest))
+        if episodes is not None:       # only once the checkpoint has been accepted
+            config.save(paths.config)
         trainer.metrics.truncate(trainer.episodes)
         trainer.eval_log.truncate(trainer.eval_rows)
         return trainer
@@ -182,64 +191,45 @@ class Trainer:
         """Run one episode in each copy (fewer at the end of the run), then update."""
         c, v, agent, a = self.config, self.vec, self.agent, self.config.algo
         n = min(v.num_envs, c.episodes - self.episodes)
-        seeds = seeds_for(c.seed, self.episodes, n)
-        obs = np.zeros((v.num_envs, 2, v.obs_size))
-        active = np.zeros(v.num_envs, dtype=bool)
-        active[:n] = True
-        for i in range(n):
-            obs[i] = v.reset(i, seeds[i])
-        agent.noise.reset(active)
-        returns = np.zeros((n, 2))
-        steps = np.zeros(n, dtype=np.int64)
-        success = np.zeros(n, dtype=bool)
-        subtask = np.zeros((n, 2), dtype=np.int64)
-        terms = {t: np.zeros((n, 2)) for t in v.term_names}
-        seen = [obs[:n].copy()]
+        agent.noise.reset(np.arange(v.num_envs) < n)
         mask = agent.action_mask[:, 0].numpy()
-        while active.any():
+        seen = []
+
+        def act(obs):
             if self.env_steps < a.warmup_steps:
-                actions = self.rng.uniform(-1.0, 1.0, (v.num_envs, 2, v.act_size)) * mask
-            else:
-                actions = agent.act(obs, self.rng, explore=True)
-            step = v.step(actions, active)
-            live = np.flatnonzero(active)
+                return self.rng.uniform(-1.0, 1.0, (v.num_envs, 2, v.act_size)) * mask
+            return agent.act(obs, self.rng, explore=True)
+
+        def store(obs, actions, step, live):
             self.buffer.add(obs[live], actions[live], step.reward[live], step.obs[live],
                             step.terminated[live])
             self.env_steps += len(live)
-            live_n = live[live < n]
-            returns[live_n] += step.reward[live_n]
-            steps[live_n] += 1
-            for t in v.term_names:
-                terms[t][live_n] += step.terms[t][live_n]
-            if step.subtask is not None:
-                subtask[live_n] = np.maximum(subtask[live_n], step.subtask[live_n])
-            ended = active & (step.terminated | step.truncated)
-            success[ended[:n]] = step.success[:n][ended[:n]]
-            active &= ~ended
             seen.append(step.obs[live])
-            obs = step.obs
-        round_steps = int(steps.sum())
-        agent.normalizer.update(np.concatenate(seen))
+
+        r = run_round(v, seeds_for(c.seed, self.episodes, n), act, store)
+        round_steps = int(r.steps.sum())
+        agent.normalizer.update(np.concatenate([r.first_obs, *seen]))
         losses = self._update(round_steps)
         wall = time.perf_counter() - started
         rows = []
         for i in range(n):
             self.episodes += 1
-            row = {"episode": self.episodes, "env_steps": self.env_steps - round_steps + int(steps[:i + 1].sum()),
-                   "wall_time_s": f"{wall:.3f}", "steps": int(steps[i])}
+            row = {"episode": self.episodes,
+                   "env_steps": self.env_steps - round_steps + int(r.steps[:i + 1].sum()),
+                   "wall_time_s": f"{wall:.3f}", "steps": int(r.steps[i])}
             for k, name in enumerate(v.agents):
-                row[f"return_{name}"] = f"{returns[i, k]:.6f}"
-            row["return_total"] = f"{returns[i].sum():.6f}"
-            row["success"] = int(success[i])
+                row[f"return_{name}"] = f"{r.returns[i, k]:.6f}"
+            row["return_total"] = f"{r.returns[i].sum():.6f}"
+            row["success"] = int(r.success[i])
             if v.has_subtasks:
                 for k, name in enumerate(v.agents):
-                    row[f"subtask_{name}"] = int(subtask[i, k])
+                    row[f"subtask_{name}"] = int(r.subtask[i, k])
             for t in v.term_names:
                 for k, name in enumerate(v.agents):
-                    row[f"{t}_{name}"] = f"{terms[t][i, k]:.6f}"
+                    row[f"{t}_{name}"] = f"{r.terms[t][i, k]:.6f}"
             rows.append(row)
-            self.recent_success.append(bool(success[i]))
-            self.recent_return.append(float(returns[i].sum()))
+            self.recent_success.append(bool(r.success[i]))
+            self.recent_return.append(float(r.returns[i].sum()))
         return rows, losses
 
     def _update(self, round_steps: int) -> list[dict]:

@@ -34,20 +34,15 @@ def load_policy(run_dir: str | Path, which: str = "best") -> tuple[TrainConfig, 
     config = TrainConfig.load(paths.config)
     path = paths.best if which == "best" and paths.best.exists() else paths.latest
     payload = load_checkpoint(path)
-    from dualarm.training.loop import make_vector_env
-
-    vec = make_vector_env(config, 1)
-    agent = DADDPG(config.algo, vec.obs_sizes, vec.act_sizes, seed=config.seed)
-    vec.close()
     try:
-        if "policy" in payload:
-            agent.load_policy_state_dict(payload["policy"])
-            info = {"checkpoint": path, "episodes": payload["eval"]["episode"], "eval": payload["eval"]}
-        else:
-            agent.load_state_dict(payload["learner"])
-            info = {"checkpoint": path, "episodes": payload["counters"]["episodes"], "eval": None}
+        # a learner state holds the policy's parts (actor, normaliser, sizes) too
+        state = payload["policy"] if "policy" in payload else payload["learner"]
+        agent = DADDPG(config.algo, state["obs_sizes"], state["act_sizes"], seed=config.seed)
+        agent.load_policy_state_dict(state)
+        episodes = payload["eval"]["episode"] if "policy" in payload else payload["counters"]["episodes"]
     except (KeyError, ValueError, RuntimeError) as exc:
         raise CheckpointError(f"{path}: does not fit this run's networks ({exc})") from None
+    info = {"checkpoint": path, "episodes": episodes, "eval": payload.get("eval")}
     return config, agent, info
 
 

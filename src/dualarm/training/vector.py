@@ -11,7 +11,7 @@ U = the widest action (actions of narrower agents are truncated).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Callable
 
 import gymnasium
 import numpy as np
