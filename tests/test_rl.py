@@ -218,3 +218,54 @@ def test_noise_processes():
     assert np.all(ou.x[0] == 0) and np.any(ou.x[1] != 0)
     with pytest.raises(ValueError, match="noise"):
         make_noise("pink", 0.1, 0.1)
+
+
+def test_nstep_episode_sums_discounted_rewards_and_bootstraps_correctly():
+    from dualarm.rl.nstep import nstep_episode
+    T, gamma = 5, 0.9
+    obs = np.arange(T, dtype=float).reshape(T, 1, 1).repeat(2, 1)
+    nxt = obs + 1
+    act = np.zeros((T, 2, 1))
+    rew = np.stack([np.arange(1.0, T + 1), -np.arange(1.0, T + 1)], axis=1)   # (T, 2)
+    o, u, r, o2, done, steps = nstep_episode(obs, act, rew, nxt, True, 3, gamma)
+    # transition 0 spans steps 0..2, transition 3 only steps 3..4 (the episode ends)
+    assert r[0, 0] == pytest.approx(1 + 0.9 * 2 + 0.81 * 3)
+    assert r[3, 1] == pytest.approx(-(4 + 0.9 * 5))
+    assert o2[0, 0, 0] == 3 and o2[3, 0, 0] == 5 and o2[4, 0, 0] == 5
+    assert steps.tolist() == [3, 3, 3, 2, 1]
+    assert done.tolist() == [0, 0, 1, 1, 1]      # windows reaching the terminal step
+    _, _, r1, o21, done1, steps1 = nstep_episode(obs, act, rew, nxt, False, 1, gamma)
+    np.testing.assert_array_equal(r1, rew)        # n = 1: the one-step transitions
+    np.testing.assert_array_equal(o21, nxt)
+    assert done1.sum() == 0 and (steps1 == 1).all()
+
+
+def test_nstep_target_uses_gamma_to_the_steps_spanned():
+    agent = small_agent(n_step=3)
+    batch = random_batch()
+    batch["steps"] = torch.tensor([1.0, 2, 3, 3, 1, 2, 3, 3])
+    norm = agent.normalizer.normalize
+    o, o2 = norm(batch["obs"]), norm(batch["next_obs"])
+    s, s2 = o.reshape(8, -1), o2.reshape(8, -1)
+    expected = 0.0
+    for i in range(2):
+        with torch.no_grad():
+            a2 = agent_mlp(agent.actor_target, i, o2[:, i]) * agent.action_mask[i, 0]
+            q2 = agent_mlp(agent.critic_target, i, torch.cat([s2, a2], -1))[:, 0]
+            y = batch["rew"][:, i] + agent.config.gamma ** batch["steps"] * (1 - batch["done"]) * q2
+            q = agent_mlp(agent.critic, i, torch.cat([s, batch["act"][:, i]], -1))[:, 0]
+        expected += float(((y - q) ** 2).mean())
+    assert agent.update(batch)["critic_loss"] == pytest.approx(expected, rel=1e-5)
+
+
+def test_value_rescaling_is_invertible_and_squashes_large_returns():
+    from dualarm.rl.daddpg import value_h, value_h_inverse
+    x = torch.tensor([-4000.0, -15.0, -0.3, 0.0, 0.2, 40.0, 4000.0], dtype=torch.float64)
+    torch.testing.assert_close(value_h_inverse(value_h(x)), x)
+    assert value_h(torch.tensor(4000.0)) < 70           # a bonus of 4000 becomes ~66
+    assert (value_h(x[1:]) > value_h(x[:-1])).all()     # increasing: argmax_a unchanged
+    agent = small_agent(value_rescale=True)
+    batch = random_batch(rew=torch.full((8, 2), 4000.0))
+    out = agent.update(batch)                            # targets in h-space: loss stays small
+    assert out["critic_loss"] < 2 * 2 * 70 ** 2
+    assert small_agent().update(batch)["critic_loss"] > 2 * 4000.0 ** 2 * 0.5

@@ -51,6 +51,13 @@ class DADDPGConfig:
     """Two critics per agent, targets from their minimum (TD3's fix of over-estimation)."""
     target_noise: float = 0.0
     """Std of clipped noise on the target actions of Eq. 13 (TD3's smoothing; 0 = off)."""
+    n_step: int = 1
+    """Rewards summed over up to n steps before bootstrapping (y = sum_k gamma^k r_k +
+    gamma^n Q'); 1 is Eq. 13 as printed. Larger n carries rare bonuses back faster."""
+    value_rescale: bool = False
+    """Critics learn h(Q) with h(x) = sign(x)(sqrt(|x|+1)-1) + 1e-3 x (Pohlen et al. 2018), so
+    that a bonus of thousands and shaping terms of tenths fit one network; the actor's
+    argmax is unchanged (h is increasing)."""
     updates_per_step: float = 0.5
     """Gradient updates per joint environment step (the update-to-data ratio)."""
     warmup_steps: int = 1000
@@ -67,6 +74,7 @@ class DADDPGConfig:
             "action_l2": self.action_l2 >= 0, "obs_clip": self.obs_clip > 0,
             "grad_clip": self.grad_clip >= 0, "reward_scale": self.reward_scale > 0,
             "q_clip": self.q_clip >= 0, "target_noise": self.target_noise >= 0, "updates_per_step": self.updates_per_step >= 0,
+            "n_step": self.n_step >= 1,
             "warmup_steps": self.warmup_steps >= 0,
         }
         bad = [name for name, ok in checks.items() if not ok]

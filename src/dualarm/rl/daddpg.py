@@ -25,6 +25,21 @@ from dualarm.rl.noise import make_noise
 from dualarm.rl.normalizer import RunningNormalizer
 
 
+#: epsilon of the value rescaling h (Pohlen et al. 2018)
+_H_EPS = 1e-3
+
+
+def value_h(x: torch.Tensor) -> torch.Tensor:
+    """h(x) = sign(x) (sqrt(|x| + 1) - 1) + eps x: squashes large returns, ~x/2 near 0."""
+    return torch.sign(x) * (torch.sqrt(x.abs() + 1.0) - 1.0) + _H_EPS * x
+
+
+def value_h_inverse(y: torch.Tensor) -> torch.Tensor:
+    """The inverse of ``value_h`` (closed form)."""
+    root = (torch.sqrt(1.0 + 4.0 * _H_EPS * (y.abs() + 1.0 + _H_EPS)) - 1.0) / (2.0 * _H_EPS)
+    return torch.sign(y) * (root * root - 1.0)
+
+
 class NonFiniteLoss(FloatingPointError):
     """A loss became NaN or infinite: the update was not applied."""
 
@@ -109,7 +124,8 @@ class DADDPG:
         """One gradient step of both agents' critics and actors, then the target update.
 
         Args:
-            batch: obs and next_obs (B, A, O), act (B, A, U), rew (B, A), done (B,).
+            batch: obs and next_obs (B, A, O), act (B, A, U), rew (B, A), done (B,), and
+                optionally steps (B,): the steps each transition spans (n-step; default 1).
 
         Returns:
             {"critic_loss", "actor_loss", "q_mean"} summed or averaged over agents.
@@ -124,6 +140,9 @@ class DADDPG:
         a_taken = batch["act"].transpose(0, 1)                     # (A, B, U)
         r = batch["rew"].t().unsqueeze(-1) * c.reward_scale        # (A, B, 1)
         not_done = (1.0 - batch["done"]).view(1, -1, 1)            # (1, B, 1)
+        steps = batch.get("steps")
+        gamma = (c.gamma if steps is None or c.n_step == 1     # gamma^n for n-step transitions
+                 else torch.pow(c.gamma, steps).view(1, -1, 1))
 
         # Eq. 13: y_i = r_i + gamma Q'_i(s', mu'_i(s'_i)); critic loss (y_i - Q_i(s, a_i))^2
         with torch.no_grad():
@@ -132,9 +151,14 @@ class DADDPG:
                 eps = (torch.randn(a2.shape) * c.target_noise).clamp(-0.5, 0.5)
                 a2 = (a2 + eps).clamp(-1.0, 1.0)
             q2 = self._per_agent(self.critic_target(self._critic_input(o2, a2 * self.action_mask)))
-            y = r + c.gamma * not_done * q2.min(dim=0).values     # min over twins (if any)
+            q2 = q2.min(dim=0).values                             # min over twins (if any)
+            if c.value_rescale:                                   # critics hold h(Q)
+                q2 = value_h_inverse(q2)
+            y = r + gamma * not_done * q2
             if c.q_clip > 0:
                 y = y.clamp(-c.q_clip, c.q_clip)
+            if c.value_rescale:
+                y = value_h(y)
         q = self._per_agent(self.critic(self._critic_input(o, a_taken)))
         critic_loss = ((y - q) ** 2).mean(dim=(2, 3)).sum()
 
@@ -167,7 +191,7 @@ class DADDPG:
                                  list(self.critic.parameters()), tau)
         self.updates += 1
         return {"critic_loss": critic_loss.item(), "actor_loss": actor_loss.item(),
-                "q_mean": q[0].mean().item()}
+                "q_mean": (value_h_inverse(q[0]) if c.value_rescale else q[0]).mean().item()}
 
     def _clip(self, net: torch.nn.Module) -> None:
         """Scale each agent's gradients so that their global norm is at most grad_clip."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-_FIELDS = ("obs", "act", "rew", "next_obs", "done")
+_FIELDS = ("obs", "act", "rew", "next_obs", "done", "steps")
 
 
 class ReplayBuffer:
@@ -13,13 +13,16 @@ class ReplayBuffer:
 
     Shapes: obs and next_obs (capacity, A, obs_size), act (capacity, A, act_size),
     rew (capacity, A), done (capacity,) 1.0 where the episode terminated (not truncated:
-    a time limit is not a terminal state, so it still bootstraps).
+    a time limit is not a terminal state, so it still bootstraps), steps (capacity,) the
+    number of environment steps the transition spans (n-step returns: ``rew`` is then the
+    discounted sum of that many rewards and ``next_obs`` the observation that many steps on).
     """
 
     def __init__(self, capacity: int, num_agents: int, obs_size: int, act_size: int):
         self.capacity = int(capacity)
         self.shapes = {"obs": (num_agents, obs_size), "act": (num_agents, act_size),
-                       "rew": (num_agents,), "next_obs": (num_agents, obs_size), "done": ()}
+                       "rew": (num_agents,), "next_obs": (num_agents, obs_size), "done": (),
+                       "steps": ()}
         # np.empty of a large capacity reserves address space only: pages fill as we write.
         self.data = {k: np.empty((self.capacity, *s), dtype=np.float32) for k, s in self.shapes.items()}
         self.size = 0
@@ -28,11 +31,11 @@ class ReplayBuffer:
     def __len__(self) -> int:
         return self.size
 
-    def add(self, obs, act, rew, next_obs, done) -> None:
-        """Append N transitions (leading axis N on every argument)."""
+    def add(self, obs, act, rew, next_obs, done, steps=1) -> None:
+        """Append N transitions (leading axis N on every argument; ``steps`` may be a scalar)."""
         n = len(obs)
         idx = (self.next + np.arange(n)) % self.capacity
-        for key, value in zip(_FIELDS, (obs, act, rew, next_obs, done)):
+        for key, value in zip(_FIELDS, (obs, act, rew, next_obs, done, steps)):
             self.data[key][idx] = value
         self.next = int((self.next + n) % self.capacity)
         self.size = min(self.size + n, self.capacity)

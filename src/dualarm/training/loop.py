@@ -23,6 +23,7 @@ import torch
 
 from dualarm.errors import DualarmError, InputError
 from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
+from dualarm.rl.nstep import nstep_episode
 from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import TrainConfig
 from dualarm.training.evaluation import evaluate
@@ -200,13 +201,24 @@ class Trainer:
                 return self.rng.uniform(-1.0, 1.0, (v.num_envs, 2, v.act_size)) * mask
             return agent.act(obs, self.rng, explore=True)
 
+        episodes = [[] for _ in range(n)]      # n-step: each copy's steps until it ends
+
         def store(obs, actions, step, live):
-            self.buffer.add(obs[live], actions[live], step.reward[live], step.obs[live],
-                            step.terminated[live])
+            if a.n_step == 1:
+                self.buffer.add(obs[live], actions[live], step.reward[live], step.obs[live],
+                                step.terminated[live])
+            else:
+                for i in live:
+                    episodes[i].append((obs[i], actions[i], step.reward[i], step.obs[i],
+                                        step.terminated[i]))
             self.env_steps += len(live)
             seen.append(step.obs[live])
 
         r = run_round(v, seeds_for(c.seed, self.episodes, n), act, store)
+        for steps in episodes:
+            if steps:
+                o, u, rew, o2, term = (np.stack(x) for x in zip(*steps))
+                self.buffer.add(*nstep_episode(o, u, rew, o2, bool(term[-1]), a.n_step, a.gamma))
         round_steps = int(r.steps.sum())
         agent.normalizer.update(np.concatenate([r.first_obs, *seen]))
         losses = self._update(round_steps)
