@@ -1,0 +1,62 @@
+"""`dualarm report`: the figures and tables of a comparison (paper Figs. 6-8)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+
+def _window(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number of episodes: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1 episode, got {text!r}")
+    return value
+
+
+def _target(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and 0 < value <= 1):
+        raise argparse.ArgumentTypeError(f"must be a success rate in (0, 1], got {text!r}")
+    return value
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """Write the report and print one line per condition."""
+    from dualarm.experiments.report import build_report, save_report, summary_rows
+
+    report = build_report(args.dir, args.window, args.target)
+    index = save_report(report, args.output or args.dir / "report")
+    header, rows = summary_rows(report)
+    for row in rows:
+        print("; ".join(f"{h}: {v}" for h, v in zip(header[:8], row[:8])))
+    for note in report.notes:
+        print(f"note: {note}", file=sys.stderr)
+    print(f"wrote {index} (figures, table.md and table.csv beside it)")
+    return 0
+
+
+def add_report_commands(sub) -> None:
+    """Add ``report`` to the top-level subparsers."""
+    report = sub.add_parser(
+        "report", help="figures and tables of a comparison (paper Figs. 6-8)",
+        description="Read the training run directories under DIR (config.yaml + metrics.csv, "
+                    "up to two levels deep) and write the average return (Fig. 6), success "
+                    "(Fig. 7) and time-to-convergence (Fig. 8) figures, table.md, table.csv "
+                    "and index.html, with mean and 95%% confidence interval over seeds and the "
+                    "paper's values beside them.")
+    report.add_argument("dir", type=Path, metavar="DIR", help="comparison directory")
+    report.add_argument("-o", "--output", type=Path, metavar="OUT",
+                        help="output directory (default: DIR/report)")
+    report.add_argument("--window", type=_window, default=100, metavar="N",
+                        help="moving-average window, episodes (default: 100)")
+    report.add_argument("--target", type=_target, default=0.85, metavar="RATE",
+                        help="success rate of 'episodes to target' (default: 0.85)")
+    report.set_defaults(func=cmd_report)
