@@ -224,6 +224,12 @@ def build_parser() -> argparse.ArgumentParser:
     add_demo_commands(sub)
     from dualarm.cli_train import add_train_commands
     add_train_commands(sub)
+    from dualarm.cli_report import add_report_commands
+    add_report_commands(sub)
+    from dualarm.cli_experiments import add_compare_commands
+    add_compare_commands(sub)
+    from dualarm.cli_pipeline import add_pipeline_commands
+    add_pipeline_commands(sub)
     return parser
 
 

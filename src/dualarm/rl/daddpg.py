@@ -80,6 +80,8 @@ class DADDPG:
         for i, n in enumerate(act_sizes):
             self.action_mask[i, :, :n] = 1.0
         self.noise = make_noise(c.noise, c.noise_std, c.ou_theta)
+        # target smoothing noise draws from the learner's own stream, not torch's global one
+        self.torch_rng = torch.Generator().manual_seed(seed + 1)
         self.updates = 0
 
     # --------------------------------------------------------------- acting
@@ -148,7 +150,7 @@ class DADDPG:
         with torch.no_grad():
             a2 = self.actor_target(o2)
             if c.target_noise > 0:     # optional target smoothing (TD3), off by default
-                eps = (torch.randn(a2.shape) * c.target_noise).clamp(-0.5, 0.5)
+                eps = (torch.randn(a2.shape, generator=self.torch_rng) * c.target_noise).clamp(-0.5, 0.5)
                 a2 = (a2 + eps).clamp(-1.0, 1.0)
             q2 = self._per_agent(self.critic_target(self._critic_input(o2, a2 * self.action_mask)))
             q2 = q2.min(dim=0).values                             # min over twins (if any)
@@ -235,12 +237,14 @@ class DADDPG:
     def state_dict(self) -> dict:
         """Everything the learner needs to continue exactly (tensors and plain values)."""
         return {**{p: getattr(self, p).state_dict() for p in self._PARTS},
-                "updates": self.updates, **self._shapes()}
+                "updates": self.updates, "torch_rng": self.torch_rng.get_state(), **self._shapes()}
 
     def load_state_dict(self, state: dict) -> None:
         """Restore from ``state_dict()``; raises ValueError naming what does not match."""
         self._restore(state, self._PARTS, "learner")
         self.updates = int(state["updates"])
+        if "torch_rng" in state:
+            self.torch_rng.set_state(state["torch_rng"])
 
     def policy_state_dict(self) -> dict:
         """What acting needs: the actors and the normaliser (small; for ``best`` policies)."""

@@ -1,0 +1,1 @@
+"""Experiments: conditions x seeds of training runs (compare) and their figures and tables (report)."""

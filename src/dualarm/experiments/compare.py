@@ -1,0 +1,500 @@
+"""Conditions x seeds of training runs in one directory: plan, manifest, resume state, driver.
+
+    DIR/comparison.yaml          the manifest: conditions, seeds, episodes, base TrainConfig
+    DIR/constraints/<cond>.yaml  copies of the --constraints-dir files the runs use (if any)
+    DIR/runs/<cond>-seed<s>/     one run directory of ``dualarm train`` per (condition, seed),
+                                 plus ``done.yaml`` once its ``run()`` has returned
+
+A run is *finished* when its ``done.yaml`` counts at least the comparison's episodes,
+*partial* when it holds a ``config.yaml`` (it resumes from its latest checkpoint), and *new*
+otherwise. Running a comparison again skips the finished runs, resumes the partial ones and
+starts the new ones; a larger ``episodes`` makes every run partial again (extended), and new
+conditions or seeds add runs. Anything else that differs from the manifest is an error.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import secrets
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from dualarm.atomic import atomic_open
+from dualarm.errors import InputError
+from dualarm.experiments.backends import MANIFEST, RunOutcome, RunTask, logged_episodes, read_done
+from dualarm.training.config import TrainConfig
+
+CONDITIONS = ("none", "single", "multi")
+GUIDED = ("single", "multi")
+DEFAULT_SEEDS = (0, 1, 2)
+MANIFEST_FORMAT = "dualarm-comparison"
+MANIFEST_VERSION = 1
+__all__ = ["CompareRequest", "Comparison", "CompareResult", "RunPlan", "prepare", "load_manifest",
+           "save_manifest", "run_state", "logged_episodes", "run_comparison", "compare", "locked",
+           "task_for", "parse_conditions", "parse_seeds", "differences", "base_dict"]
+
+#: TrainConfig fields set per run (not part of the comparison's base config).
+PER_RUN = ("condition", "seed", "episodes", "constraints")
+
+
+@dataclass(frozen=True)
+class CompareRequest:
+    """What a ``dualarm compare`` invocation asks for; None means "as in the manifest" (or
+    the default for a new comparison).
+
+    Attributes:
+        conditions: guidance conditions to include (added to the manifest's).
+        seeds: seeds to include (added to the manifest's), each >= 0.
+        episodes: training episodes per run; may grow, never shrink, an existing comparison.
+        base: base TrainConfig of every run (its condition, seed and constraints are ignored,
+            its episodes used only when ``episodes`` is None for a new comparison).
+        base_source: where ``base`` came from (named in conflict messages).
+        constraints_dir: a folder with ``single.yaml`` and/or ``multi.yaml``; None uses the
+            shipped files (new comparison) or the comparison's own copies.
+    """
+
+    conditions: tuple[str, ...] | None = None
+    seeds: tuple[int, ...] | None = None
+    episodes: int | None = None
+    base: TrainConfig | None = None
+    base_source: str = "--config"
+    constraints_dir: Path | None = None
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """One (condition, seed) run of a comparison.
+
+    Attributes:
+        name: "<condition>-seed<seed>", the run directory's name.
+        config: the run's full TrainConfig (``episodes`` is the target total).
+        path: its run directory.
+        state: "finished", "partial" or "new" (see ``run_state``).
+    """
+
+    name: str
+    condition: str
+    seed: int
+    config: TrainConfig
+    path: Path
+    state: str
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A comparison as recorded in its manifest (see the module docstring).
+
+    Attributes:
+        root: the comparison directory (absolute).
+        id: random id of the comparison (tells a Ray node whether it sees ``root``).
+        conditions, seeds: the grid of runs, in canonical order.
+        episodes: training episodes of every run.
+        base: the base TrainConfig (per-run fields at their defaults).
+        constraints_dir: the folder the constraint files were copied from, or None for the
+            shipped files.
+    """
+
+    root: Path
+    id: str
+    conditions: tuple[str, ...]
+    seeds: tuple[int, ...]
+    episodes: int
+    base: TrainConfig
+    constraints_dir: Path | None = None
+
+    @property
+    def manifest_path(self) -> Path:
+        return self.root / MANIFEST
+
+    def constraints_path(self, condition: str) -> Path | None:
+        """The comparison's copy of the constraints of ``condition``; None for "none" or the
+        shipped file (a run config's ``constraints: null`` means the shipped one)."""
+        if condition == "none" or self.constraints_dir is None:
+            return None
+        return self.root / "constraints" / f"{condition}.yaml"
+
+    def run_config(self, condition: str, seed: int) -> TrainConfig:
+        """The TrainConfig of one run: the base with the run's condition, seed, episodes and
+        constraints."""
+        path = self.constraints_path(condition)
+        return self.base.with_(condition=condition, seed=seed, episodes=self.episodes,
+                               constraints=str(path) if path else None)
+
+    def runs(self) -> list[RunPlan]:
+        """Every (condition, seed) run, conditions first, with its current state."""
+        plans = []
+        for condition in self.conditions:
+            for seed in self.seeds:
+                name = f"{condition}-seed{seed}"
+                path = self.root / "runs" / name
+                plans.append(RunPlan(name, condition, seed, self.run_config(condition, seed),
+                                     path, run_state(path, self.episodes)))
+        return plans
+
+    def to_manifest(self) -> dict:
+        return {"format": MANIFEST_FORMAT, "version": MANIFEST_VERSION, "id": self.id,
+                "conditions": list(self.conditions), "seeds": list(self.seeds),
+                "episodes": self.episodes,
+                "constraints_dir": str(self.constraints_dir) if self.constraints_dir else None,
+                "base": base_dict(self.base)}
+
+
+@dataclass
+class CompareResult:
+    """What a comparison invocation did.
+
+    Attributes:
+        skipped: names of the runs already finished before it started.
+        outcomes: one per run it trained, in the order they ended.
+    """
+
+    comparison: Comparison
+    skipped: list[str] = field(default_factory=list)
+    outcomes: list[RunOutcome] = field(default_factory=list)
+
+    @property
+    def failed(self) -> list[RunOutcome]:
+        return [o for o in self.outcomes if not o.ok]
+
+
+# ------------------------------------------------------------------ state
+def run_state(run_dir: str | Path, episodes: int) -> str:
+    """"finished" (its done marker counts >= ``episodes``), "partial" (it holds a
+    ``config.yaml``: resume it) or "new" (start it)."""
+    run_dir = Path(run_dir)
+    done = read_done(run_dir)
+    if done is not None and done["episodes"] >= episodes:
+        return "finished"
+    return "partial" if (run_dir / "config.yaml").exists() else "new"
+
+
+def base_dict(config: TrainConfig) -> dict:
+    """``config`` as plain YAML-safe data without the per-run fields (``PER_RUN``)."""
+    d = {k: v for k, v in config.to_dict().items() if k not in PER_RUN}
+    return yaml.safe_load(yaml.safe_dump(d))
+
+
+def _flatten(d, prefix: str = "") -> dict:
+    if not isinstance(d, dict):
+        return {prefix: d}
+    out = {}
+    for k, v in d.items():
+        out.update(_flatten(v, f"{prefix}.{k}" if prefix else str(k)))
+    return out
+
+
+def differences(a: dict, b: dict) -> list[tuple[str, object, object]]:
+    """(dotted field, value in a, value in b) for every field where two nested dicts differ."""
+    fa, fb = _flatten(a), _flatten(b)
+    return [(k, fa.get(k), fb.get(k)) for k in sorted(set(fa) | set(fb)) if fa.get(k) != fb.get(k)]
+
+
+# --------------------------------------------------------------- manifest
+def load_manifest(root: str | Path) -> Comparison | None:
+    """The comparison recorded in ``root/comparison.yaml``, or None if there is none.
+
+    Raises:
+        InputError: the manifest is unreadable, not a comparison manifest, or invalid.
+    """
+    root = Path(root).resolve()
+    path = root / MANIFEST
+    if not path.exists():
+        return None
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise InputError(f"cannot read the comparison manifest ({exc})", source=str(path)) from None
+    if not isinstance(data, dict) or data.get("format") != MANIFEST_FORMAT:
+        raise InputError("not a dualarm comparison manifest", source=str(path))
+    if data.get("version") != MANIFEST_VERSION:
+        raise InputError(f"manifest version {data.get('version')} is not supported "
+                         f"(this code reads {MANIFEST_VERSION})", source=str(path))
+    try:
+        base = TrainConfig.from_dict(data["base"], where=f"{path}: base")
+        comparison = Comparison(
+            root=root, id=str(data["id"]),
+            conditions=_conditions(data["conditions"], f"{path}: conditions"),
+            seeds=_seeds(data["seeds"], f"{path}: seeds"),
+            episodes=_episodes(data["episodes"], f"{path}: episodes"),
+            base=base,
+            constraints_dir=Path(data["constraints_dir"]) if data.get("constraints_dir") else None)
+    except KeyError as exc:
+        raise InputError(f"missing field {exc}", source=str(path)) from None
+    return comparison
+
+
+def save_manifest(comparison: Comparison) -> None:
+    """Write ``comparison.yaml`` atomically."""
+    with atomic_open(comparison.manifest_path) as f:
+        f.write(yaml.safe_dump(comparison.to_manifest(), sort_keys=False).encode())
+
+
+def _conditions(values, where: str) -> tuple[str, ...]:
+    values = list(values)
+    bad = [c for c in values if c not in CONDITIONS]
+    if bad or not values:
+        raise InputError(f"{where}: conditions must be among {', '.join(CONDITIONS)}, got {values}")
+    return tuple(c for c in CONDITIONS if c in values)
+
+
+def _seeds(values, where: str) -> tuple[int, ...]:
+    values = list(values)
+    if not values or any(not isinstance(s, int) or isinstance(s, bool) or s < 0 for s in values):
+        raise InputError(f"{where}: seeds must be integers >= 0, got {values}")
+    return tuple(sorted(set(values)))
+
+
+def _episodes(value, where: str) -> int:
+    if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+        raise InputError(f"{where}: episodes must be an integer >= 1, got {value!r}")
+    return value
+
+
+# ---------------------------------------------------------------- prepare
+def prepare(root: str | Path, request: CompareRequest) -> Comparison:
+    """Create the comparison in ``root``, or merge ``request`` into the one there; copy the
+    constraint files it needs, check the existing run directories, write the manifest.
+
+    Nothing is written unless every check passes.
+
+    Raises:
+        InputError: the request conflicts with the manifest (the field is named), a
+            constraints file is missing or invalid, a run directory was made with other
+            settings, or ``root`` holds runs but no manifest.
+    """
+    root = Path(root).resolve()
+    if root.exists() and not root.is_dir():
+        raise InputError(f"{root}: not a directory")
+    existing = load_manifest(root)
+    where = str(root / MANIFEST)
+    if request.conditions is not None:
+        _conditions(request.conditions, "--conditions")
+    if request.seeds is not None:
+        _seeds(request.seeds, "--seeds")
+    if request.episodes is not None:
+        _episodes(request.episodes, "--episodes")
+    given_dir = request.constraints_dir.resolve() if request.constraints_dir is not None else None
+    if given_dir is not None and not given_dir.is_dir():
+        raise InputError(f"{given_dir}: --constraints-dir is not a directory")
+
+    if existing is None:
+        runs = root / "runs"
+        if runs.is_dir() and any(runs.iterdir()):
+            raise InputError(f"{runs} holds runs but {root} has no {MANIFEST}: not a comparison "
+                             "directory of this version; choose another -o")
+        base = request.base or TrainConfig()
+        comparison = Comparison(
+            root=root, id=secrets.token_hex(8),
+            conditions=_conditions(request.conditions or CONDITIONS, "--conditions"),
+            seeds=_seeds(request.seeds if request.seeds is not None else DEFAULT_SEEDS, "--seeds"),
+            episodes=request.episodes or base.episodes,
+            base=TrainConfig.from_dict(base_dict(base), where=request.base_source),
+            constraints_dir=given_dir)
+    else:
+        if request.base is not None:
+            diff = differences(base_dict(existing.base), base_dict(request.base))
+            if diff:
+                name, theirs, mine = diff[0]
+                raise InputError(f"field '{name}' is {theirs!r} in the comparison's base config but "
+                                 f"{mine!r} in {request.base_source} (and {len(diff) - 1} more field(s) "
+                                 "differ); run it with the same base config or choose another -o",
+                                 source=where)
+        if request.episodes is not None and request.episodes < existing.episodes:
+            raise InputError(f"field 'episodes' is {existing.episodes}, --episodes {request.episodes} "
+                             "would shorten the runs (runs are extended, never shortened)", source=where)
+        if given_dir is not None and existing.constraints_dir is None:
+            raise InputError(f"field 'constraints_dir': the comparison uses the shipped constraint "
+                             f"files, not --constraints-dir {given_dir}", source=where)
+        comparison = Comparison(
+            root=root, id=existing.id,
+            conditions=_conditions(set(existing.conditions) | set(request.conditions or ()), "--conditions"),
+            seeds=_seeds(set(existing.seeds) | set(request.seeds or ()), "--seeds"),
+            episodes=max(existing.episodes, request.episodes or 0),
+            base=existing.base, constraints_dir=existing.constraints_dir)
+
+    copies = _constraint_copies(comparison, given_dir)
+    for plan in comparison.runs():
+        _check_run_dir(plan)
+    for condition, source in copies.items():
+        with atomic_open(comparison.constraints_path(condition)) as f:
+            f.write(source.read_bytes())
+    save_manifest(comparison)
+    return comparison
+
+
+def _constraint_copies(comparison: Comparison, given_dir: Path | None) -> dict[str, Path]:
+    """Constraint files to copy into ``root/constraints`` ({condition: source}), after
+    checking that every guided condition has one and that ``given_dir`` agrees with the
+    copies already made."""
+    from dualarm.constraints import ConstraintSet
+
+    if comparison.constraints_dir is None:
+        return {}
+    copies = {}
+    for condition in (c for c in comparison.conditions if c in GUIDED):
+        copy = comparison.constraints_path(condition)
+        source = (given_dir or comparison.constraints_dir) / f"{condition}.yaml"
+        if copy.exists():
+            if given_dir is not None and (not source.exists()
+                                          or source.read_bytes() != copy.read_bytes()):
+                raise InputError(f"field 'constraints.{condition}': {source} differs from the "
+                                 f"comparison's copy {copy}; choose another -o to compare other "
+                                 "constraints", source=str(comparison.manifest_path))
+            continue
+        if not source.exists():
+            raise InputError(f"{source}: no {condition}.yaml in the constraints directory "
+                             f"(condition '{condition}' needs it; see `dualarm constraints extract`)")
+        ConstraintSet.load(source)
+        copies[condition] = source
+    return copies
+
+
+def _check_run_dir(plan: RunPlan) -> None:
+    """An existing run directory must have been made with the run's settings (but episodes)."""
+    path = plan.path / "config.yaml"
+    if not path.exists():
+        return
+    mine = plan.config.to_dict()
+    theirs = TrainConfig.load(path).to_dict()
+    mine.pop("episodes"), theirs.pop("episodes")
+    diff = differences(yaml.safe_load(yaml.safe_dump(theirs)), yaml.safe_load(yaml.safe_dump(mine)))
+    if diff:
+        name, there, here = diff[0]
+        raise InputError(f"field '{name}' is {there!r} in this run but {here!r} in the comparison; "
+                         "move the run away or choose another -o", source=str(path))
+
+
+# ----------------------------------------------------------------- driver
+@contextlib.contextmanager
+def locked(root: str | Path) -> Iterator[None]:
+    """Hold ``root/.lock`` (an advisory lock) so two comparisons never share a directory.
+
+    Raises:
+        InputError: another process holds it.
+    """
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    try:
+        import fcntl
+    except ImportError:          # no advisory locks on this platform
+        yield
+        return
+    with open(root / ".lock", "a+") as f:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            f.seek(0)
+            holder = f.read().strip() or "another process"
+            raise InputError(f"{root} is in use by another dualarm compare ({holder})") from None
+        f.seek(0)
+        f.truncate()
+        f.write(f"pid {os.getpid()}\n")
+        f.flush()
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def task_for(comparison: Comparison, plan: RunPlan) -> RunTask:
+    """The backend task of a run (a partial run resumes with ``plan.config.episodes``)."""
+    path = plan.config.constraints
+    return RunTask(plan.name, str(comparison.root), comparison.id, plan.config.to_dict(),
+                   Path(path).read_bytes() if path else None)
+
+
+def _describe(outcome: RunOutcome) -> str:
+    if not outcome.ok:
+        return f"{outcome.name}: FAILED after {outcome.episodes} episodes: {outcome.error}"
+    line = f"{outcome.name}: done, {outcome.episodes} episodes ({outcome.wall_time_s:.0f} s"
+    line += f" on {outcome.node})" if outcome.node else ")"
+    if outcome.last_eval:
+        line += (f", last evaluation: success {outcome.last_eval['success_rate']:.2f}, "
+                 f"return {outcome.last_eval['return_mean']:.1f}")
+    return line
+
+
+def run_comparison(comparison: Comparison, backend, poll_s: float = 2.0, progress: bool = True,
+                   stream=None) -> CompareResult:
+    """Train every unfinished run of ``comparison`` on ``backend`` until all have ended.
+
+    One progress bar counts the episodes logged by all runs (total = runs x episodes,
+    from the runs' ``metrics.csv``, polled every ``poll_s`` seconds); a line is printed as
+    each run ends. A failed run is reported and the others go on. On KeyboardInterrupt
+    the runs in flight are stopped (their checkpoints remain) and it is re-raised.
+
+    Args:
+        backend: a ``LocalBackend`` or ``RayBackend`` (``capacity`` runs in flight at most).
+        stream: where the bar and lines go (default: stderr).
+    """
+    from tqdm import tqdm
+
+    stream = stream or sys.stderr
+    plans = comparison.runs()
+    result = CompareResult(comparison, skipped=[p.name for p in plans if p.state == "finished"])
+    todo = [p for p in plans if p.state != "finished"]
+    states = {s: sum(p.state == s for p in plans) for s in ("finished", "partial", "new")}
+    print(f"comparison {comparison.root}: {len(plans)} runs of {comparison.episodes} episodes "
+          f"({states['finished']} finished, {states['partial']} to resume, {states['new']} new)",
+          file=stream)
+    if not todo:
+        return result
+    backend.start()
+    print(f"backend: {backend.describe()}", file=stream)
+    target = comparison.episodes
+    bar = tqdm(total=len(plans) * target, unit="ep", desc="compare", file=stream,
+               disable=not progress, dynamic_ncols=True)
+    ended: set[str] = set(result.skipped)
+
+    def count() -> int:
+        return sum(target if p.name in ended else min(target, logged_episodes(p.path)) for p in plans)
+
+    queue = list(todo)
+    try:
+        bar.n = count()
+        bar.refresh()
+        while queue or backend.running:
+            while queue and backend.running < backend.capacity:
+                backend.submit(task_for(comparison, queue.pop(0)))
+            for outcome in backend.wait(poll_s):
+                result.outcomes.append(outcome)
+                if outcome.ok:
+                    ended.add(outcome.name)
+                tqdm.write(_describe(outcome), file=stream)
+                if outcome.traceback:
+                    tqdm.write(outcome.traceback.rstrip(), file=stream)
+            bar.n = count()
+            bar.refresh()
+    finally:
+        bar.close()
+        backend.close()
+    return result
+
+
+def compare(root: str | Path, request: CompareRequest, backend, poll_s: float = 2.0,
+            progress: bool = True, stream=None) -> CompareResult:
+    """``prepare`` the comparison in ``root`` and ``run_comparison`` it, holding its lock."""
+    with locked(root):
+        comparison = prepare(root, request)
+        return run_comparison(comparison, backend, poll_s=poll_s, progress=progress, stream=stream)
+
+
+def parse_conditions(text: str) -> tuple[str, ...]:
+    """"none,multi" -> ("none", "multi") in canonical order; InputError names a bad one."""
+    items = [c.strip() for c in text.split(",") if c.strip()]
+    return _conditions(items, "--conditions")
+
+
+def parse_seeds(text: str) -> tuple[int, ...]:
+    """"0,1,2" -> (0, 1, 2); InputError if a seed is not an integer >= 0."""
+    try:
+        items = [int(s) for s in text.split(",") if s.strip()]
+    except ValueError:
+        raise InputError(f"--seeds: expected integers separated by commas, got {text!r}") from None
+    return _seeds(items, "--seeds")
+
