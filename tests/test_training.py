@@ -20,7 +20,8 @@ from dualarm.training.vector import ParallelEnvVector
 
 # Plappert's target and L2 settings suit the toy's returns (about -25..10); see docs/training.md.
 TOY_ALGO = DADDPGConfig(hidden=(64, 64), batch_size=128, updates_per_step=0.5, polyak=0.95,
-                        action_l2=1.0, warmup_steps=500, buffer_size=100_000)
+                        action_l2=1.0, warmup_steps=500, buffer_size=100_000,
+                        actor_lr=1e-3, noise_std=0.2, random_eps=0.3)   # Plappert's exploration
 
 
 def rows(path, drop=("wall_time_s",)):
