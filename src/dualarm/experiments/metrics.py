@@ -35,8 +35,8 @@ def trailing_mean(x, window: int) -> tuple[np.ndarray, np.ndarray]:
     """Trailing moving average of a per-episode curve, and where its window is full.
 
     ``ma[i]`` is the mean of ``x[max(0, i - window + 1) : i + 1]``: the last ``window``
-    episodes up to and including episode ``i + 1``, fewer at the start of the run (the same
-    values as ``dualarm.training.plots.moving_average``).
+    episodes up to and including episode ``i + 1``, fewer at the start of the run (the
+    training plots' ``moving_average`` is this one).
 
     Args:
         x: (n,) one value per episode, in episode order (any unit).

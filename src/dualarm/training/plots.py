@@ -21,10 +21,9 @@ def _read(path: Path) -> dict[str, np.ndarray]:
 
 def moving_average(x: np.ndarray, window: int) -> np.ndarray:
     """Trailing mean over up to ``window`` values (shorter at the start), same length as x."""
-    c = np.cumsum(np.insert(np.asarray(x, dtype=float), 0, 0.0))
-    n = np.arange(1, len(x) + 1)
-    lo = np.maximum(n - window, 0)
-    return (c[n] - c[lo]) / (n - lo)
+    from dualarm.experiments.metrics import trailing_mean
+
+    return trailing_mean(x, window)[0]
 
 
 def plot_run(run_dir: str | Path, output: str | Path, window: int = 100) -> Path:
