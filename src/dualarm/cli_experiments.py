@@ -6,6 +6,9 @@ import argparse
 import sys
 from pathlib import Path
 
+from dualarm.cli_types import positive
+from dualarm.cli_types import positive_int
+
 
 def cmd_compare(args: argparse.Namespace) -> int:
     """Prepare (or reopen) the comparison in -o DIR and train its unfinished runs.
@@ -39,26 +42,6 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {text!r}")
-    return value
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not value > 0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a number of seconds > 0, got {text!r}")
-    return value
-
-
 def add_compare_commands(sub) -> None:
     """Add ``compare`` to the top-level subparsers."""
     p = sub.add_parser(
@@ -72,10 +55,10 @@ def add_compare_commands(sub) -> None:
                    help="among none, single, multi (default: all three, or the comparison's)")
     p.add_argument("--seeds", metavar="S1,S2,...",
                    help="seeds, integers >= 0 (default: 0,1,2, or the comparison's)")
-    p.add_argument("--episodes", type=_positive_int, metavar="N",
+    p.add_argument("--episodes", type=positive_int, metavar="N",
                    help="training episodes per run (default: the --config's, 3000, or the "
                         "comparison's; a larger value extends the runs)")
-    p.add_argument("--workers", type=_positive_int, metavar="W",
+    p.add_argument("--workers", type=positive_int, metavar="W",
                    help="runs at a time (default local: the CPU count; ray: as many as the "
                         "cluster has CPUs for)")
     p.add_argument("--backend", choices=("local", "ray"), default="local",
@@ -89,7 +72,7 @@ def add_compare_commands(sub) -> None:
     p.add_argument("--constraints-dir", type=Path, metavar="DIR",
                    help="folder with single.yaml and multi.yaml (`dualarm constraints extract` "
                         "output; default: the shipped constraint files)")
-    p.add_argument("--poll", type=_positive_float, default=2.0, metavar="S",
+    p.add_argument("--poll", type=positive, default=2.0, metavar="S",
                    help=argparse.SUPPRESS)
     p.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
                    help="comparison directory")

@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from dualarm.cli_types import positive_int
+
 #: (condition, segment spec) of the constraint files the comparison needs (paper: C1, C2&C3).
 CONSTRAINT_SETS = (("single", "reach+grasp+align"), ("multi", "reach+grasp,align"))
 
@@ -67,12 +69,12 @@ def add_pipeline_commands(sub) -> None:
                     "--episodes 10000 reproduces the paper's budget.")
     p.add_argument("-o", "--output", type=Path, default=Path("out/pipeline"), metavar="DIR",
                    help="output directory (default: out/pipeline)")
-    p.add_argument("--episodes", type=int, default=200, metavar="N",
+    p.add_argument("--episodes", type=positive_int, default=200, metavar="N",
                    help="training episodes per run (default: 200, about 10 minutes on 2 cores)")
     p.add_argument("--conditions", default="none,single,multi", metavar="C1,C2,...",
                    help="guidance conditions (default: none,single,multi)")
     p.add_argument("--seeds", default="0,1,2", metavar="S1,S2,...", help="seeds (default: 0,1,2)")
-    p.add_argument("--workers", type=int, metavar="W", help="runs at a time (default: CPU count)")
+    p.add_argument("--workers", type=positive_int, metavar="W", help="runs at a time (default: CPU count)")
     p.add_argument("--backend", choices=("local", "ray"), default="local")
     p.add_argument("--ray-address", metavar="ADDR")
     p.add_argument("--config", type=Path, metavar="BASE.yaml",

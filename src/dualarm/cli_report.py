@@ -3,29 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
-
-def _window(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number of episodes: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1 episode, got {text!r}")
-    return value
-
-
-def _target(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and 0 < value <= 1):
-        raise argparse.ArgumentTypeError(f"must be a success rate in (0, 1], got {text!r}")
-    return value
+from dualarm.cli_types import positive_int, rate
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -55,8 +36,8 @@ def add_report_commands(sub) -> None:
     report.add_argument("dir", type=Path, metavar="DIR", help="comparison directory")
     report.add_argument("-o", "--output", type=Path, metavar="OUT",
                         help="output directory (default: DIR/report)")
-    report.add_argument("--window", type=_window, default=100, metavar="N",
+    report.add_argument("--window", type=positive_int, default=100, metavar="N",
                         help="moving-average window, episodes (default: 100)")
-    report.add_argument("--target", type=_target, default=0.85, metavar="RATE",
+    report.add_argument("--target", type=rate, default=0.85, metavar="RATE",
                         help="success rate of 'episodes to target' (default: 0.85)")
     report.set_defaults(func=cmd_report)
