@@ -70,7 +70,7 @@ def add_pipeline_commands(sub) -> None:
     p.add_argument("-o", "--output", type=Path, default=Path("out/pipeline"), metavar="DIR",
                    help="output directory (default: out/pipeline)")
     p.add_argument("--episodes", type=positive_int, default=200, metavar="N",
-                   help="training episodes per run (default: 200, about 10 minutes on 2 cores)")
+                   help="training episodes per run (default: 200, about 9 minutes on 2 cores)")
     p.add_argument("--conditions", default="none,single,multi", metavar="C1,C2,...",
                    help="guidance conditions (default: none,single,multi)")
     p.add_argument("--seeds", default="0,1,2", metavar="S1,S2,...", help="seeds (default: 0,1,2)")
