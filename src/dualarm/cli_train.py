@@ -41,7 +41,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         return 130
     from dualarm.training.plots import plot_run
 
-    curves = plot_run(result.out, result.out / "curves.png")
+    curves = plot_run(result.out, trainer.paths.curves)
     line = f"done: {result.episodes} episodes, {result.env_steps} steps, {result.wall_time_s:.0f} s"
     if result.last_eval:
         line += (f"; last evaluation: success {result.last_eval['success_rate']:.2f}, "

@@ -33,6 +33,7 @@ import yaml
 
 from dualarm.atomic import atomic_open
 from dualarm.errors import DualarmError, InputError
+from dualarm.training.run_dir import RunPaths
 
 #: Written (atomically) in a run directory once ``Trainer.run()`` has returned.
 DONE_MARKER = "done.yaml"
@@ -126,18 +127,19 @@ def train_run(config: dict, run_dir: str | Path) -> RunOutcome:
     from dualarm.training.plots import plot_run
 
     run_dir = Path(run_dir)
+    paths = RunPaths(run_dir)
     name = run_dir.name
     started = time.perf_counter()
     node = socket.gethostname()
     try:
         config = TrainConfig.from_dict(config, where=f"run {name}")
-        if (run_dir / "config.yaml").exists():     # never shorten a run that went further
-            episodes = max(config.episodes, TrainConfig.load(run_dir / "config.yaml").episodes)
+        if paths.config.exists():     # never shorten a run that went further
+            episodes = max(config.episodes, TrainConfig.load(paths.config).episodes)
             trainer = Trainer.resume(run_dir, episodes=episodes, progress=False)
         else:
             trainer = Trainer.start(config, run_dir, progress=False)
         result = trainer.run()
-        plot_run(run_dir, run_dir / "curves.png")
+        plot_run(run_dir, paths.curves)
         done = {"episodes": result.episodes, "env_steps": result.env_steps,
                 "wall_time_s": round(result.wall_time_s, 3), "last_eval": result.last_eval}
         with atomic_open(run_dir / DONE_MARKER) as f:
@@ -155,7 +157,7 @@ def train_run(config: dict, run_dir: str | Path) -> RunOutcome:
 def logged_episodes(run_dir: str | Path) -> int:
     """Rows of the run's ``metrics.csv`` (episodes logged so far; 0 if there is none)."""
     try:
-        with open(Path(run_dir) / "metrics.csv", "rb") as f:
+        with open(RunPaths(run_dir).metrics, "rb") as f:
             return max(0, f.read().count(b"\n") - 1)
     except OSError:
         return 0
@@ -470,7 +472,7 @@ class RayBackend:
             self.start()
         ship = self.shared_fs is False or (self.shared_fs is None and self.address is not None)
         snapshot = []
-        if ship and (task.run_dir / "config.yaml").exists():
+        if ship and RunPaths(task.run_dir).config.exists():
             snapshot = [self._ray.put(pack_run(task.run_dir))]
         ref = self._remote.remote(task, self.shared_fs, snapshot)
         self._running[ref] = task

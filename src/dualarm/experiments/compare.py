@@ -28,6 +28,7 @@ from dualarm.atomic import atomic_open
 from dualarm.errors import InputError
 from dualarm.experiments.backends import MANIFEST, RunOutcome, RunTask, logged_episodes, read_done
 from dualarm.training.config import TrainConfig
+from dualarm.training.run_dir import RunPaths
 
 CONDITIONS = ("none", "single", "multi")
 GUIDED = ("single", "multi")
@@ -170,7 +171,7 @@ def run_state(run_dir: str | Path, episodes: int) -> str:
     done = read_done(run_dir)
     if done is not None and done["episodes"] >= episodes:
         return "finished"
-    return "partial" if (run_dir / "config.yaml").exists() else "new"
+    return "partial" if RunPaths(run_dir).config.exists() else "new"
 
 
 def base_dict(config: TrainConfig) -> dict:
@@ -356,7 +357,7 @@ def _constraint_copies(comparison: Comparison, given_dir: Path | None) -> dict[s
 
 def _check_run_dir(plan: RunPlan) -> None:
     """An existing run directory must have been made with the run's settings (but episodes)."""
-    path = plan.path / "config.yaml"
+    path = RunPaths(plan.path).config
     if not path.exists():
         return
     mine = plan.config.to_dict()

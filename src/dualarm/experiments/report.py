@@ -206,10 +206,12 @@ class Report:
 def find_run_dirs(comparison_dir: str | Path, depth: int = 2) -> list[Path]:
     """Directories holding ``config.yaml`` and ``metrics.csv``: ``comparison_dir`` itself and
     those up to ``depth`` levels below it (hidden ones skipped), sorted by path."""
+    from dualarm.training.run_dir import RunPaths
+
     root = Path(comparison_dir)
     found, level = [], [root]
     for d in range(depth + 1):
-        found += [p for p in level if (p / "config.yaml").is_file() and (p / "metrics.csv").is_file()]
+        found += [p for p in level if RunPaths(p).config.is_file() and RunPaths(p).metrics.is_file()]
         if d < depth:
             level = [c for p in level for c in sorted(p.iterdir())
                      if c.is_dir() and not c.name.startswith(".")]

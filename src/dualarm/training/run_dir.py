@@ -6,6 +6,7 @@
     DIR/events/                     TensorBoard event files
     DIR/checkpoints/latest.pt       everything needed to continue exactly
     DIR/checkpoints/best_policy.pt  actors + normaliser of the best evaluation
+    DIR/curves.png                  learning curves, drawn when a run ends
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ class RunPaths:
         self.checkpoints = self.root / "checkpoints"
         self.latest = self.checkpoints / "latest.pt"
         self.best = self.checkpoints / "best_policy.pt"
+        self.curves = self.root / "curves.png"
 
 
 class CsvLog:
