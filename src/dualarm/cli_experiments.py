@@ -42,22 +42,13 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-def add_compare_commands(sub) -> None:
-    """Add ``compare`` to the top-level subparsers."""
-    p = sub.add_parser(
-        "compare", help="train every condition x seed (parallel, resumable)",
-        description="Train one run of `dualarm train` per (condition, seed) in parallel, in "
-                    "DIR/runs/CONDITION-seedSEED, with the settings recorded in "
-                    "DIR/comparison.yaml. Run it again to skip the finished runs and resume the "
-                    "others; a larger --episodes extends them, new --conditions or --seeds add "
-                    "runs. See docs/compare.md.")
+def grid_options(p: argparse.ArgumentParser) -> None:
+    """The options that say which runs to train and where: shared by compare and pipeline,
+    which hands them on to compare unchanged (None: the comparison's, or the default)."""
     p.add_argument("--conditions", metavar="C1,C2,...",
                    help="among none, single, multi (default: all three, or the comparison's)")
     p.add_argument("--seeds", metavar="S1,S2,...",
                    help="seeds, integers >= 0 (default: 0,1,2, or the comparison's)")
-    p.add_argument("--episodes", type=positive_int, metavar="N",
-                   help="training episodes per run (default: the --config's, 3000, or the "
-                        "comparison's; a larger value extends the runs)")
     p.add_argument("--workers", type=positive_int, metavar="W",
                    help="runs at a time (default local: the CPU count; ray: as many as the "
                         "cluster has CPUs for)")
@@ -69,6 +60,32 @@ def add_compare_commands(sub) -> None:
     p.add_argument("--config", type=Path, metavar="BASE.yaml",
                    help="TrainConfig fields for every run (as `dualarm train --config`); "
                         "condition, seed and constraints are set per run")
+
+
+def grid_argv(args: argparse.Namespace) -> list[str]:
+    """``grid_options`` as given on a command line, to hand on to ``dualarm compare``."""
+    argv = ["--backend", args.backend]
+    for flag, value in (("--conditions", args.conditions), ("--seeds", args.seeds),
+                        ("--workers", args.workers), ("--ray-address", args.ray_address),
+                        ("--config", args.config)):
+        if value is not None:
+            argv += [flag, str(value)]
+    return argv
+
+
+def add_compare_commands(sub) -> None:
+    """Add ``compare`` to the top-level subparsers."""
+    p = sub.add_parser(
+        "compare", help="train every condition x seed (parallel, resumable)",
+        description="Train one run of `dualarm train` per (condition, seed) in parallel, in "
+                    "DIR/runs/CONDITION-seedSEED, with the settings recorded in "
+                    "DIR/comparison.yaml. Run it again to skip the finished runs and resume the "
+                    "others; a larger --episodes extends them, new --conditions or --seeds add "
+                    "runs. See docs/compare.md.")
+    grid_options(p)
+    p.add_argument("--episodes", type=positive_int, metavar="N",
+                   help="training episodes per run (default: the --config's, 3000, or the "
+                        "comparison's; a larger value extends the runs)")
     p.add_argument("--constraints-dir", type=Path, metavar="DIR",
                    help="folder with single.yaml and multi.yaml (`dualarm constraints extract` "
                         "output; default: the shipped constraint files)")

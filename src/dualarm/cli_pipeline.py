@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from dualarm.cli_experiments import grid_argv, grid_options
 from dualarm.cli_types import positive_int
 
 #: (condition, segment spec) of the constraint files the comparison needs (paper: C1, C2&C3).
@@ -23,17 +24,10 @@ def pipeline_steps(args: argparse.Namespace) -> list[tuple[str, list[str]]]:
         if args.demo_dir is not None:
             argv.insert(2, str(args.demo_dir))
         steps.append((f"constraints {name} ({spec}) from the demonstrations", argv))
-    compare = ["compare", "--conditions", args.conditions, "--seeds", args.seeds,
-               "--episodes", str(args.episodes), "--backend", args.backend,
+    compare = ["compare", "--episodes", str(args.episodes), *grid_argv(args),
                "--constraints-dir", str(constraints), "-o", str(out)]
-    if args.workers is not None:
-        compare += ["--workers", str(args.workers)]
-    if args.ray_address is not None:
-        compare += ["--ray-address", args.ray_address]
-    if args.config is not None:
-        compare += ["--config", str(args.config)]
-    steps.append((f"training: conditions {args.conditions} x seeds {args.seeds}, "
-                  f"{args.episodes} episodes each", compare))
+    steps.append((f"training: conditions {args.conditions or 'none,single,multi'} x seeds "
+                  f"{args.seeds or '0,1,2'}, {args.episodes} episodes each", compare))
     steps.append(("report: Figs. 6-8, table, HTML", ["report", str(out)]))
     return steps
 
@@ -71,14 +65,7 @@ def add_pipeline_commands(sub) -> None:
                    help="output directory (default: out/pipeline)")
     p.add_argument("--episodes", type=positive_int, default=200, metavar="N",
                    help="training episodes per run (default: 200, about 9 minutes on 2 cores)")
-    p.add_argument("--conditions", default="none,single,multi", metavar="C1,C2,...",
-                   help="guidance conditions (default: none,single,multi)")
-    p.add_argument("--seeds", default="0,1,2", metavar="S1,S2,...", help="seeds (default: 0,1,2)")
-    p.add_argument("--workers", type=positive_int, metavar="W", help="runs at a time (default: CPU count)")
-    p.add_argument("--backend", choices=("local", "ray"), default="local")
-    p.add_argument("--ray-address", metavar="ADDR")
-    p.add_argument("--config", type=Path, metavar="BASE.yaml",
-                   help="TrainConfig fields for every run (as `dualarm train --config`)")
+    grid_options(p)
     p.add_argument("--demo-dir", type=Path, metavar="DIR",
                    help="demonstrations with labels.csv (default: the shipped ones)")
     p.set_defaults(func=cmd_pipeline)
