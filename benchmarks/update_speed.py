@@ -43,7 +43,7 @@ def time_updates(config: DADDPGConfig, obs: int, seconds: float) -> float:
     buf = ReplayBuffer(20_000, 2, obs, 4)
     n = 20_000
     buf.add(rng.normal(size=(n, 2, obs)), rng.uniform(-1, 1, (n, 2, 4)), rng.normal(size=(n, 2)),
-            rng.normal(size=(n, 2, obs)), np.zeros(n))
+            rng.normal(size=(n, 2, obs)), np.zeros(n), rng.integers(1, config.n_step + 1, n))
     agent.normalizer.update(rng.normal(size=(1000, 2, obs)))
     for _ in range(5):
         agent.update(buf.sample(rng, config.batch_size))
@@ -63,19 +63,22 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     print(f"torch {torch.__version__}, {args.threads} thread(s), {platform.processor() or platform.machine()}")
-    cases = [((256, 256, 256), 256, False), ((256, 256), 256, False), ((128, 128, 128), 256, False),
-             ((128, 128), 256, False), ((256, 256, 256), 128, False), ((256, 256), 256, True),
-             ((128, 128), 256, True)]
-    print(f"{'hidden':>16} {'batch':>5} {'twin':>4} {'GFLOP/upd':>9} {'ms/upd':>7} {'upd/s':>6} "
-          f"{'GFLOP/s':>7} {'roofline':>8} {'ratio':>5}")
-    for hidden, batch, twin in cases:
-        config = DADDPGConfig(hidden=hidden, batch_size=batch, twin_critics=twin, buffer_size=20_000)
+    # (hidden, batch, twin critics, 3-step returns + value rescaling)
+    cases = [((256, 256, 256), 256, False, False), ((256, 256), 256, False, False),
+             ((128, 128, 128), 256, False, False), ((128, 128), 256, False, False),
+             ((256, 256, 256), 128, False, False), ((256, 256), 256, True, False),
+             ((128, 128), 256, True, False), ((256, 256), 256, False, True)]
+    print(f"{'hidden':>16} {'batch':>5} {'twin':>4} {'h+n3':>4} {'GFLOP/upd':>9} {'ms/upd':>7} "
+          f"{'upd/s':>6} {'GFLOP/s':>7} {'roofline':>8} {'ratio':>5}")
+    for hidden, batch, twin, rescale in cases:
+        config = DADDPGConfig(hidden=hidden, batch_size=batch, twin_critics=twin, buffer_size=20_000,
+                              n_step=3 if rescale else 1, value_rescale=rescale)
         dt, flops = time_updates(config, args.obs, args.seconds)
         # the roofline: the matmul rate of the update's hidden layer shape (batch x h @ h x h)
         peak = matmul_gflops(2 * batch, hidden[-1], hidden[-1], min(1.0, args.seconds))
         rate = flops / dt / 1e9
         print(f"{'x'.join(map(str, hidden)):>16} {batch:>5} {'yes' if twin else 'no':>4} "
-              f"{flops / 1e9:>9.3f} {dt * 1e3:>7.2f} {1 / dt:>6.1f} {rate:>7.1f} {peak:>8.1f} "
+              f"{'yes' if rescale else 'no':>4} {flops / 1e9:>9.3f} {dt * 1e3:>7.2f} {1 / dt:>6.1f} {rate:>7.1f} {peak:>8.1f} "
               f"{rate / peak:>5.2f}")
     big = matmul_gflops(1024, 1024, 1024, min(2.0, args.seconds))
     print(f"large matmul (1024^3) peak: {big:.1f} GFLOP/s")
