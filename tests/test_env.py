@@ -173,6 +173,30 @@ def test_distance_term_subtask_goal(core, expert, seed):
     assert seen == {0, 1, 2}
 
 
+def test_distance_term_reach_funnel():
+    """reach_funnel: during reach the goal sits above the box by slope x horizontal offset
+    (at most reach_funnel_height); grasp and align keep their goals."""
+    config = TaskConfig(reach_funnel=1.5, reach_funnel_height=0.08)
+    env = BaxterReachGraspAlign(config)
+    seen, lifted = set(), []
+
+    def check(env, result):
+        grip, box, subtask = grip_pos(env), box_pos(env), result.info["subtask"]
+        offset = np.linalg.norm((box - grip)[:, :2], axis=1)
+        lift = np.where(subtask == 0, np.minimum(1.5 * offset, 0.08), 0.0)
+        goal = np.where((subtask == 2)[:, None], env.targets, box + lift[:, None] * [0, 0, 1])
+        expected = -np.linalg.norm(goal - grip, axis=1)
+        np.testing.assert_allclose(result.info["reward_terms"]["distance"], expected, rtol=1e-12, atol=1e-12)
+        seen.update(subtask.tolist())
+        lifted.extend(lift.tolist())
+
+    results = run_expert(env, ScriptedExpert(config), 1, check)
+    assert seen == {0, 1, 2} and results[-1].info["is_success"]
+    assert max(lifted) == pytest.approx(0.08) and 0 < min(x for x in lifted if x > 0) < 0.08
+    with pytest.raises(ValueError, match="reach_funnel"):
+        TaskConfig(reach_funnel=-1.0)
+
+
 def test_distance_term_final_goal():
     config = TaskConfig(goal="final")
     env = BaxterReachGraspAlign(config)

@@ -16,7 +16,7 @@ from dualarm.envs.point_mass import TwoPointMassEnv
 from dualarm.rl import DADDPGConfig
 from dualarm.training import TrainConfig, Trainer, TrainingDiverged, resume, train
 from dualarm.training.run_dir import CheckpointError, load_checkpoint
-from dualarm.training.vector import ParallelEnvVector
+from dualarm.training.vector import ParallelEnvVector, seeds_for
 
 # Plappert's target and L2 settings suit the toy's returns (about -25..10); see docs/training.md.
 TOY_ALGO = DADDPGConfig(hidden=(64, 64), batch_size=128, updates_per_step=0.5, polyak=0.95,
@@ -202,3 +202,74 @@ def test_daddpg_learns_to_bring_both_baxter_grippers_to_their_boxes(tmp_path):
     before = evaluate(lambda o: untrained.act(o), vec, 16)
     after = evaluate(lambda o: trained.act(o), vec, 16)
     assert after.mean_return > 0.75 * before.mean_return, (before.mean_return, after.mean_return)
+
+
+def test_daddpg_with_demonstrations_learns_the_baxter_reach_to_80_percent(tmp_path):
+    """The issue's reach target, learned with the two options beyond the paper that it needs
+    (docs/training.md): the approach funnel in the distance term and 64 episodes of the
+    scripted expert in a demonstration buffer with Q-filtered behaviour cloning. Success is
+    both grippers within 2 cm of their boxes at the same step, on the 32 fixed evaluation
+    placements, deterministic policy. Measured (seed 0): 0.84 at 400 episodes, 0.875 at 480,
+    in under 3 minutes on one core."""
+    algo = DADDPGConfig(demo_batch_size=64, bc_weight=30.0)
+    config = TrainConfig(condition="none", episodes=480, num_envs=16, eval_every=80,
+                         eval_episodes=32, demo_episodes=64, algo=algo, seed=0,
+                         task={"success_at": "reach", "max_episode_steps": 30,
+                               "coordinate_bonus": 10.0, "reach_funnel": 1.0})
+    result = train(config, tmp_path / "run", progress=False)
+    evals = rows(tmp_path / "run" / "eval.csv")
+    assert float(evals[0]["success_rate"]) < 0.5                    # it starts unable
+    assert result.last_eval["success_rate"] >= 0.8, evals
+
+
+def demo_config(**changes):
+    algo = DADDPGConfig(hidden=(32, 32), batch_size=32, warmup_steps=100, buffer_size=5000,
+                        demo_batch_size=16, bc_weight=1.0)
+    base = dict(condition="none", episodes=16, num_envs=4, eval_every=0, checkpoint_every=8,
+                demo_episodes=4, algo=algo, task={"max_episode_steps": 20, "success_at": "reach"},
+                seed=2)
+    base.update(changes)
+    return TrainConfig(**base)
+
+
+def test_demonstrations_are_the_expert_in_the_runs_own_environment():
+    """The demonstration buffer holds the scripted expert's actions on the run's task, with
+    the rewards that task pays, and different placements from the training episodes."""
+    from dualarm.envs.expert import ScriptedExpert
+    from dualarm.training.demonstrations import record_expert_demonstrations
+    from dualarm.training.loop import make_vector_env
+
+    config = demo_config()
+    vec = make_vector_env(config, 4)
+    demos = record_expert_demonstrations(config, vec)
+    n = len(demos)
+    assert 4 <= n <= 4 * 20
+    obs, act, rew = (demos.data[k][:n] for k in ("obs", "act", "rew"))
+    expert = ScriptedExpert(config.task_config())
+    np.testing.assert_allclose(act, np.stack([expert(o) for o in obs]), atol=1e-5)
+    assert demos.data["done"][:n].sum() >= 3      # the expert reaches both boxes in 20 steps
+    assert rew[:, 0].max() > 0                     # ... and earns the reach bonus
+    layout = vec.batch.layout
+    demo_boxes = obs[0, :, layout["object_pos"]]
+    vec.reset(0, seeds_for(config.seed, 0, 1)[0])  # the run's first training episode
+    assert not np.allclose(demo_boxes, vec.batch._qpos[0, :, 9:12])
+
+
+def test_run_with_demonstrations_resumes_exactly(tmp_path):
+    train(demo_config(), tmp_path / "ref", progress=False)
+    train(demo_config(episodes=8), tmp_path / "run", progress=False)
+    resume(tmp_path / "run", episodes=16, progress=False)
+    assert rows(tmp_path / "run" / "metrics.csv") == rows(tmp_path / "ref" / "metrics.csv")
+    train(demo_config(demo_episodes=0, algo=DADDPGConfig(hidden=(32, 32), batch_size=32,
+                                                         warmup_steps=100, buffer_size=5000)),
+          tmp_path / "plain", progress=False)
+    assert rows(tmp_path / "plain" / "metrics.csv") != rows(tmp_path / "ref" / "metrics.csv")
+
+
+def test_demonstration_settings_are_checked():
+    with pytest.raises(ValueError, match="demo_episodes"):
+        TrainConfig(algo=DADDPGConfig(demo_batch_size=8))
+    with pytest.raises(ValueError, match="demo_episodes must be >= 0"):
+        TrainConfig(demo_episodes=-1)
+    with pytest.raises(Exception, match="custom environment"):
+        Trainer.start(small_toy_config(demo_episodes=2), "unused", make_env=TwoPointMassEnv)

@@ -38,6 +38,7 @@ FINGER_CLOSED = np.array([0.0115, -0.0115])
 _FINGER_TRAVEL = FINGER_CLOSED - FINGER_OPEN
 #: Finger-pad gap (m) at finger joints (0, 0): the gap is this + l - r.
 _GAP_AT_ZERO = 2 * (0.01 + 0.01725 - 0.0047 - 0.0035)
+_UP = np.array([0.0, 0.0, 1.0])
 
 
 def finger_gap(fingers: np.ndarray) -> np.ndarray:
@@ -435,7 +436,13 @@ class BaxterBatch:
         subtask = state["subtask"]
         to_target = state["targets"] - state["grip"]
         if self._goal_is_subtask:
-            to_goal = np.where((subtask == 2)[..., None], to_target, state["rel"])
+            to_box = state["rel"]
+            if c.reach_funnel > 0:      # during reach, aim above the box until over it
+                rel = state["rel"]
+                lift = np.minimum(c.reach_funnel * np.sqrt(rel[..., 0] ** 2 + rel[..., 1] ** 2),
+                                  c.reach_funnel_height)
+                to_box = rel + np.where(subtask == 0, lift, 0.0)[..., None] * _UP
+            to_goal = np.where((subtask == 2)[..., None], to_target, to_box)
         else:
             to_goal = to_target
         distance = -np.sqrt((to_goal * to_goal).sum(axis=-1))

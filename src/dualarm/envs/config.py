@@ -28,6 +28,12 @@ class TaskConfig:
             arm's target throughout, as Eq. 17 is printed (pos_finalgoal).
         joint_angles_in_obs: put each arm's 7 joint angles in its observation; None means
             "only when guided" (the paper adds them for the constrained conditions).
+        reach_funnel: slope of the approach funnel of the distance term during reach: its
+            goal sits above the box centre by this many metres per metre of horizontal
+            offset (capped at ``reach_funnel_height``), so that descending before the
+            gripper is over the box no longer pays and the fingers stop sweeping the box
+            away. 0 is the box centre itself, as in the paper (docs/env.md).
+        reach_funnel_height: the highest the funnel's goal sits above the box centre.
         max_episode_steps: steps before truncation.
         substeps: physics steps per control step (control period = substeps * timestep).
         max_cartesian_step: grip-site displacement per step at action 1 (paper's gym: 5 cm).
@@ -60,6 +66,8 @@ class TaskConfig:
     condition: str = "none"
     goal: str = "subtask"
     joint_angles_in_obs: bool | None = None
+    reach_funnel: float = 0.0
+    reach_funnel_height: float = 0.1
     max_episode_steps: int = 50
     substeps: int = 10
     max_cartesian_step: float = 0.05
@@ -97,6 +105,9 @@ class TaskConfig:
             raise ValueError(f"success_at must be one of {SUBTASK_ORDER}, got {self.success_at!r}")
         if self.max_episode_steps < 1 or self.substeps < 1:
             raise ValueError("max_episode_steps and substeps must be at least 1")
+        if self.reach_funnel < 0 or self.reach_funnel_height < 0:
+            raise ValueError("reach_funnel and reach_funnel_height must be non-negative, got "
+                             f"{self.reach_funnel} and {self.reach_funnel_height}")
         if len(self.guide_c0) != 3 or min(self.guide_c0) < 0:
             raise ValueError(f"guide_c0 must be 3 non-negative numbers, got {self.guide_c0}")
         for f in fields(self):

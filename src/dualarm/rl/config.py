@@ -61,6 +61,13 @@ class DADDPGConfig:
     """Critics learn h(Q) with h(x) = sign(x)(sqrt(|x|+1)-1) + 1e-3 x (Pohlen et al. 2018), so
     that a bonus of thousands and shaping terms of tenths fit one network; the actor's
     argmax is unchanged (h is increasing)."""
+    demo_batch_size: int = 0
+    """Transitions drawn from the demonstration buffer into every update, next to
+    ``batch_size`` from replay (Nair et al. 2018; needs demonstrations, e.g. TrainConfig's
+    ``demo_episodes``). 0: demonstrations are not used, as in the paper."""
+    bc_weight: float = 0.0
+    """Weight of the behaviour-cloning term on the demonstration rows of a batch, Q-filtered:
+    only where the critic rates the demonstrated action above the actor's (Nair et al. 2018)."""
     updates_per_step: float = 0.5
     """Gradient updates per joint environment step (the update-to-data ratio)."""
     warmup_steps: int = 1000
@@ -78,6 +85,7 @@ class DADDPGConfig:
             "grad_clip": self.grad_clip >= 0, "reward_scale": self.reward_scale > 0,
             "q_clip": self.q_clip >= 0, "target_noise": self.target_noise >= 0, "updates_per_step": self.updates_per_step >= 0,
             "n_step": self.n_step >= 1,
+            "demo_batch_size": self.demo_batch_size >= 0, "bc_weight": self.bc_weight >= 0,
             "warmup_steps": self.warmup_steps >= 0,
         }
         bad = [name for name, ok in checks.items() if not ok]

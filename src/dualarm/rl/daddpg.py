@@ -122,12 +122,15 @@ class DADDPG:
         """Critic outputs (K, B, 1) -> (critics_per_agent, A, B, 1)."""
         return q.view(self.critics_per_agent, self.num_agents, *q.shape[1:])
 
-    def update(self, batch: dict[str, torch.Tensor]) -> dict[str, float]:
+    def update(self, batch: dict[str, torch.Tensor], demo_rows: int = 0) -> dict[str, float]:
         """One gradient step of both agents' critics and actors, then the target update.
 
         Args:
             batch: obs and next_obs (B, A, O), act (B, A, U), rew (B, A), done (B,), and
                 optionally steps (B,): the steps each transition spans (n-step; default 1).
+            demo_rows: the last ``demo_rows`` rows of the batch are demonstrations: with
+                ``bc_weight`` > 0 the actor is also pulled towards their actions where the
+                critic rates those above its own (the Q-filter).
 
         Returns:
             {"critic_loss", "actor_loss", "q_mean"} summed or averaged over agents.
@@ -170,6 +173,11 @@ class DADDPG:
         q_pi = self._per_agent(self.critic(self._critic_input(o, a_pi)))[0]
         self.critic.requires_grad_(True)
         actor_loss = (-q_pi.mean(dim=(1, 2)) + c.action_l2 * (a_pi ** 2).mean(dim=(1, 2))).sum()
+        if demo_rows and c.bc_weight > 0:
+            # behaviour cloning on the demonstrations the critic prefers to the actor's actions
+            better = (q[0, :, -demo_rows:] > q_pi[:, -demo_rows:]).detach().float()  # (A, D, 1)
+            miss = ((a_pi[:, -demo_rows:] - a_taken[:, -demo_rows:]) ** 2).sum(-1, keepdim=True)
+            actor_loss = actor_loss + c.bc_weight * (better * miss).mean(dim=(1, 2)).sum()
 
         if not (torch.isfinite(critic_loss) and torch.isfinite(actor_loss)):
             raise NonFiniteLoss(f"non-finite loss at update {self.updates + 1}: critic "

@@ -13,7 +13,7 @@ from dualarm.rl.config import DADDPGConfig
 #: TaskConfig fields a run may override (the rest keep the task's defaults).
 TASK_OVERRIDES = ("control", "goal", "success_at", "max_episode_steps", "joint_angles_in_obs",
                   "reach_threshold", "terminate_on_success", "coordinate_bonus", "grasp_bonus",
-                  "reach_bonus", "guide_c0")
+                  "reach_bonus", "guide_c0", "reach_funnel", "reach_funnel_height")
 
 
 @dataclass(frozen=True)
@@ -32,6 +32,9 @@ class TrainConfig:
         checkpoint_every: training episodes between checkpoints (0: only by time and at the end).
         checkpoint_minutes: wall-clock minutes between checkpoints.
         torch_threads: PyTorch intra-op threads (1 gives bit-reproducible runs).
+        demo_episodes: episodes of the scripted expert recorded into a demonstration buffer
+            before training (used by ``algo.demo_batch_size`` and ``algo.bc_weight``); 0 for
+            none, as in the paper's three conditions. Baxter task, cartesian control only.
         algo: the DADDPG hyper-parameters.
     """
 
@@ -46,6 +49,7 @@ class TrainConfig:
     checkpoint_every: int = 0
     checkpoint_minutes: float = 2.0
     torch_threads: int = 1
+    demo_episodes: int = 0
     algo: DADDPGConfig = field(default_factory=DADDPGConfig)
 
     def __post_init__(self):
@@ -58,9 +62,11 @@ class TrainConfig:
         for name in ("episodes", "num_envs", "torch_threads"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
-        for name in ("eval_every", "eval_episodes", "checkpoint_every"):
+        for name in ("eval_every", "eval_episodes", "checkpoint_every", "demo_episodes"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if self.algo.demo_batch_size > 0 and self.demo_episodes == 0:
+            raise ValueError("algo.demo_batch_size > 0 draws from demonstrations: set demo_episodes")
         if self.checkpoint_minutes <= 0:
             raise ValueError(f"checkpoint_minutes must be > 0, got {self.checkpoint_minutes}")
 

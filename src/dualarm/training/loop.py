@@ -26,6 +26,7 @@ from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
 from dualarm.rl.nstep import nstep_episode
 from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import TrainConfig
+from dualarm.training.demonstrations import record_expert_demonstrations
 from dualarm.training.evaluation import evaluate
 from dualarm.training.rounds import run_round
 from dualarm.training.run_dir import (CheckpointError, CsvLog, RunPaths, load_checkpoint,
@@ -91,6 +92,15 @@ class Trainer:
         v = self.vec
         self.agent = DADDPG(config.algo, v.obs_sizes, v.act_sizes, seed=config.seed)
         self.buffer = ReplayBuffer(config.algo.buffer_size, 2, v.obs_size, v.act_size)
+        # Demonstrations are recorded again on resume (the expert and the physics are
+        # deterministic); the normaliser's statistics then come from the checkpoint.
+        self.demos = None
+        if config.demo_episodes:
+            if make_env is not None:
+                raise InputError("demo_episodes: the scripted expert demonstrates the Baxter "
+                                 "task only, not a custom environment")
+            self.demos = record_expert_demonstrations(config, v)
+            self.agent.normalizer.update(self.demos.data["obs"][:len(self.demos)])
         self.rng = np.random.default_rng([config.seed, 1])
         self.episodes = 0
         self.env_steps = 0
@@ -253,9 +263,14 @@ class Trainer:
         count = int(self.updates_owed)
         self.updates_owed -= count
         losses = []
+        demo_rows = a.demo_batch_size if self.demos is not None else 0
         for _ in range(count):
+            batch = self.buffer.sample(self.rng, a.batch_size)
+            if demo_rows:
+                demos = self.demos.sample(self.rng, demo_rows)
+                batch = {k: torch.cat([batch[k], demos[k]]) for k in batch}
             try:
-                losses.append(self.agent.update(self.buffer.sample(self.rng, a.batch_size)))
+                losses.append(self.agent.update(batch, demo_rows))
             except NonFiniteLoss as exc:
                 raise TrainingDiverged(
                     f"training stopped in the round after episode {self.episodes}: {exc}. "
@@ -320,6 +335,10 @@ class Trainer:
         where = self.paths.latest
         mine = self.config.with_(episodes=1).to_dict()
         theirs = payload.get("config", {})
+        try:   # settings added since the checkpoint was written take their defaults
+            theirs = TrainConfig.from_dict(theirs).to_dict()
+        except (InputError, TypeError):
+            pass
         changed = sorted(k for k in mine if mine.get(k) != theirs.get(k))
         if changed:
             raise CheckpointError(f"{where}: the checkpoint was made with different settings "
