@@ -209,17 +209,18 @@ def test_daddpg_with_demonstrations_learns_the_baxter_reach_to_80_percent(tmp_pa
     (docs/training.md): the approach funnel in the distance term and 64 episodes of the
     scripted expert in a demonstration buffer with Q-filtered behaviour cloning. Success is
     both grippers within 2 cm of their boxes at the same step, on the 32 fixed evaluation
-    placements, deterministic policy. Measured (seed 0): 0.84 at 400 episodes, 0.875 at 480,
-    in under 3 minutes on one core."""
+    placements, deterministic policy; the run keeps the best evaluated policy, which is what
+    `dualarm eval` and `play` load. Measured with seed 0: 0.84 at 400 episodes, 0.875 at 480,
+    in under 3 minutes on one core (seed 2: 0.91 at 480; seed 1 only 0.375 at 560)."""
     algo = DADDPGConfig(demo_batch_size=64, bc_weight=30.0)
     config = TrainConfig(condition="none", episodes=480, num_envs=16, eval_every=80,
                          eval_episodes=32, demo_episodes=64, algo=algo, seed=0,
                          task={"success_at": "reach", "max_episode_steps": 30,
                                "coordinate_bonus": 10.0, "reach_funnel": 1.0})
-    result = train(config, tmp_path / "run", progress=False)
-    evals = rows(tmp_path / "run" / "eval.csv")
-    assert float(evals[0]["success_rate"]) < 0.5                    # it starts unable
-    assert result.last_eval["success_rate"] >= 0.8, evals
+    train(config, tmp_path / "run", progress=False)
+    success = [float(r["success_rate"]) for r in rows(tmp_path / "run" / "eval.csv")]
+    assert success[0] < 0.5                                   # it starts unable
+    assert max(success) >= 0.8, success
 
 
 def demo_config(**changes):
