@@ -36,8 +36,9 @@ def matmul_gflops(m: int, k: int, n: int, seconds: float) -> float:
     return best
 
 
-def time_updates(config: DADDPGConfig, obs: int, seconds: float) -> float:
-    """Median seconds per dual-agent update."""
+def time_updates(config: DADDPGConfig, obs: int, seconds: float) -> tuple[float, float]:
+    """Median seconds per dual-agent update, and its matmul FLOPs (demonstration rows, if
+    any, are drawn from the same random transitions and counted in the batch)."""
     agent = DADDPG(config, (obs, obs), (4, 4))
     rng = np.random.default_rng(0)
     buf = ReplayBuffer(20_000, 2, obs, 4)
@@ -45,14 +46,15 @@ def time_updates(config: DADDPGConfig, obs: int, seconds: float) -> float:
     buf.add(rng.normal(size=(n, 2, obs)), rng.uniform(-1, 1, (n, 2, 4)), rng.normal(size=(n, 2)),
             rng.normal(size=(n, 2, obs)), np.zeros(n), rng.integers(1, config.n_step + 1, n))
     agent.normalizer.update(rng.normal(size=(1000, 2, obs)))
+    rows = config.batch_size + config.demo_batch_size
     for _ in range(5):
-        agent.update(buf.sample(rng, config.batch_size))
+        agent.update(buf.sample(rng, rows), config.demo_batch_size)
     times, end = [], time.perf_counter() + seconds
     while time.perf_counter() < end or len(times) < 5:
         t = time.perf_counter()
-        agent.update(buf.sample(rng, config.batch_size))
+        agent.update(buf.sample(rng, rows), config.demo_batch_size)
         times.append(time.perf_counter() - t)
-    return float(np.median(times)), agent.update_flops()
+    return float(np.median(times)), agent.update_flops(rows)
 
 
 def main() -> None:
@@ -63,22 +65,25 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     print(f"torch {torch.__version__}, {args.threads} thread(s), {platform.processor() or platform.machine()}")
-    # (hidden, batch, twin critics, 3-step returns + value rescaling)
-    cases = [((256, 256, 256), 256, False, False), ((256, 256), 256, False, False),
-             ((128, 128, 128), 256, False, False), ((128, 128), 256, False, False),
-             ((256, 256, 256), 128, False, False), ((256, 256), 256, True, False),
-             ((128, 128), 256, True, False), ((256, 256), 256, False, True)]
-    print(f"{'hidden':>16} {'batch':>5} {'twin':>4} {'h+n3':>4} {'GFLOP/upd':>9} {'ms/upd':>7} "
-          f"{'upd/s':>6} {'GFLOP/s':>7} {'roofline':>8} {'ratio':>5}")
-    for hidden, batch, twin, rescale in cases:
-        config = DADDPGConfig(hidden=hidden, batch_size=batch, twin_critics=twin, buffer_size=20_000,
-                              n_step=3 if rescale else 1, value_rescale=rescale)
+    # (hidden, batch, options beyond the defaults)
+    h_n3 = {"n_step": 3, "value_rescale": True}
+    demos = {"demo_batch_size": 64, "bc_weight": 30.0}
+    cases = [((256, 256, 256), 256, {}), ((256, 256), 256, {}), ((128, 128, 128), 256, {}),
+             ((128, 128), 256, {}), ((256, 256, 256), 128, {}),
+             ((256, 256), 256, {"twin_critics": True}), ((128, 128), 256, {"twin_critics": True}),
+             ((256, 256), 256, h_n3), ((256, 256), 256, demos)]
+    print(f"{'hidden':>16} {'batch':>5} {'twin':>4} {'h+n3':>4} {'demo':>4} {'GFLOP/upd':>9} "
+          f"{'ms/upd':>7} {'upd/s':>6} {'GFLOP/s':>7} {'roofline':>8} {'ratio':>5}")
+    for hidden, batch, options in cases:
+        config = DADDPGConfig(hidden=hidden, batch_size=batch, buffer_size=20_000, **options)
+        flags = [config.twin_critics, config.value_rescale, config.demo_batch_size > 0]
         dt, flops = time_updates(config, args.obs, args.seconds)
         # the roofline: the matmul rate of the update's hidden layer shape (batch x h @ h x h)
         peak = matmul_gflops(2 * batch, hidden[-1], hidden[-1], min(1.0, args.seconds))
         rate = flops / dt / 1e9
-        print(f"{'x'.join(map(str, hidden)):>16} {batch:>5} {'yes' if twin else 'no':>4} "
-              f"{'yes' if rescale else 'no':>4} {flops / 1e9:>9.3f} {dt * 1e3:>7.2f} {1 / dt:>6.1f} {rate:>7.1f} {peak:>8.1f} "
+        print(f"{'x'.join(map(str, hidden)):>16} {batch:>5} "
+              + " ".join(f"{'yes' if f else 'no':>4}" for f in flags)
+              + f" {flops / 1e9:>9.3f} {dt * 1e3:>7.2f} {1 / dt:>6.1f} {rate:>7.1f} {peak:>8.1f} "
               f"{rate / peak:>5.2f}")
     big = matmul_gflops(1024, 1024, 1024, min(2.0, args.seconds))
     print(f"large matmul (1024^3) peak: {big:.1f} GFLOP/s")

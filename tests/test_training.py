@@ -272,5 +272,7 @@ def test_demonstration_settings_are_checked():
         TrainConfig(algo=DADDPGConfig(demo_batch_size=8))
     with pytest.raises(ValueError, match="demo_episodes must be >= 0"):
         TrainConfig(demo_episodes=-1)
+    with pytest.raises(ValueError, match="cartesian control only"):
+        TrainConfig(demo_episodes=2, task={"control": "joint"})
     with pytest.raises(Exception, match="custom environment"):
         Trainer.start(small_toy_config(demo_episodes=2), "unused", make_env=TwoPointMassEnv)

@@ -436,9 +436,8 @@ class BaxterBatch:
         subtask = state["subtask"]
         to_target = state["targets"] - state["grip"]
         if self._goal_is_subtask:
-            to_box = state["rel"]
+            to_box = rel = state["rel"]
             if c.reach_funnel > 0:      # during reach, aim above the box until over it
-                rel = state["rel"]
                 lift = np.minimum(c.reach_funnel * np.sqrt(rel[..., 0] ** 2 + rel[..., 1] ** 2),
                                   c.reach_funnel_height)
                 to_box = rel + np.where(subtask == 0, lift, 0.0)[..., None] * _UP

@@ -67,6 +67,9 @@ class TrainConfig:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if self.algo.demo_batch_size > 0 and self.demo_episodes == 0:
             raise ValueError("algo.demo_batch_size > 0 draws from demonstrations: set demo_episodes")
+        if self.demo_episodes and self.task_config().control != "cartesian":
+            raise ValueError("demo_episodes: the scripted expert demonstrates cartesian control "
+                             "only, not task.control 'joint'")
         if self.checkpoint_minutes <= 0:
             raise ValueError(f"checkpoint_minutes must be > 0, got {self.checkpoint_minutes}")
 
