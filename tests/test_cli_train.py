@@ -82,3 +82,19 @@ def test_bad_inputs_name_what_is_wrong(tmp_path, capsys):
                  "--out", str(tmp_path / "r2")]) == 2
     assert "missing.yaml" in capsys.readouterr().err
     assert not (tmp_path / "r2").exists()                 # nothing written for a bad start
+
+
+def test_shipped_expert_demos_config_trains(tmp_path, capsys):
+    """configs/expert-demos.yaml, the settings of docs/training.md's fourth round, stays a
+    valid --config: demonstrations recorded, the twin critics and reward scale in force."""
+    from pathlib import Path
+
+    shipped = Path(__file__).resolve().parents[1] / "configs" / "expert-demos.yaml"
+    out = tmp_path / "run"
+    assert main(["train", "--config", str(shipped), "--episodes", "16", "--out", str(out)]) == 0
+    saved = yaml.safe_load((out / "config.yaml").read_text())
+    assert saved["condition"] == "multi" and saved["demo_episodes"] == 256
+    assert saved["task"]["reach_funnel"] == 1.0
+    assert saved["algo"]["twin_critics"] and saved["algo"]["reward_scale"] == 0.0025
+    with open(out / "metrics.csv", newline="") as f:
+        assert len(list(csv.DictReader(f))) == 16

@@ -1,7 +1,7 @@
 """One configuration of the reach-grasp-align task: every threshold, range and weight by name.
 
 Values the paper gives are marked (paper); the rest were chosen so that the scripted
-expert solves the task with margin (``benchmarks/expert_success.py`` measures it).
+expert solves the task with margin (``dualarm env expert`` measures it).
 """
 
 from __future__ import annotations
