@@ -1,6 +1,7 @@
 """`dualarm train | eval | play | export` as a user runs them."""
 
 import csv
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -87,8 +88,6 @@ def test_bad_inputs_name_what_is_wrong(tmp_path, capsys):
 def test_shipped_expert_demos_config_trains(tmp_path, capsys):
     """configs/expert-demos.yaml, the settings of docs/training.md's fourth round, stays a
     valid --config: demonstrations recorded, the twin critics and reward scale in force."""
-    from pathlib import Path
-
     shipped = Path(__file__).resolve().parents[1] / "configs" / "expert-demos.yaml"
     out = tmp_path / "run"
     assert main(["train", "--config", str(shipped), "--episodes", "16", "--out", str(out)]) == 0
