@@ -317,3 +317,32 @@ def test_demo_settings_are_validated():
         DADDPGConfig(demo_batch_size=-1)
     with pytest.raises(ValueError, match="bc_weight"):
         DADDPGConfig(bc_weight=-0.1)
+
+
+def test_reward_heads_follow_equation_13_per_head_and_the_actor_sees_their_sum():
+    """Head k regresses (scaled component k) + gamma Q'_k; the actor's Q is the heads' sum in
+    the first head's units, so two heads of one reward split in two equal a single head."""
+    scales = (1.0, 0.05, 0.001)
+    config = DADDPGConfig(hidden=(16, 16), batch_size=8, buffer_size=100)
+    agent = DADDPG(config, OBS, ACT, seed=3, head_scales=scales)
+    g = torch.Generator().manual_seed(5)
+    batch = random_batch(rew=torch.randn(8, 2, 3, generator=g) * torch.tensor([1.0, 20.0, 1000.0]))
+    norm = agent.normalizer.normalize
+    o, o2 = norm(batch["obs"]), norm(batch["next_obs"])
+    s, s2 = o.reshape(8, -1), o2.reshape(8, -1)
+    expected = 0.0
+    for i in range(2):
+        with torch.no_grad():
+            a2 = agent_mlp(agent.actor_target, i, o2[:, i]) * agent.action_mask[i, 0]
+            q2 = agent_mlp(agent.critic_target, i, torch.cat([s2, a2], -1))            # (B, 3)
+            y = batch["rew"][:, i] * torch.tensor(scales) + config.gamma * (1 - batch["done"])[:, None] * q2
+            q = agent_mlp(agent.critic, i, torch.cat([s, batch["act"][:, i]], -1))
+        expected += float(((y - q) ** 2).mean())
+    assert agent.update(batch)["critic_loss"] == pytest.approx(expected, rel=1e-5)
+    heads = torch.tensor([[0.5, 0.1, 0.002]])
+    torch.testing.assert_close(agent.q_total(heads), torch.tensor([[0.5 + 0.1 / 0.05 + 0.002 / 0.001]]))
+    # a checkpoint with other heads is refused, one with the same heads loads
+    same = DADDPG(config, OBS, ACT, seed=0, head_scales=scales)
+    same.load_state_dict(agent.state_dict())
+    with pytest.raises(ValueError, match="head_scales"):
+        DADDPG(config, OBS, ACT, seed=0).load_state_dict(agent.state_dict())

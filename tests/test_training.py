@@ -276,3 +276,41 @@ def test_demonstration_settings_are_checked():
         TrainConfig(demo_episodes=2, task={"control": "joint"})
     with pytest.raises(Exception, match="custom environment"):
         Trainer.start(small_toy_config(demo_episodes=2), "unused", make_env=TwoPointMassEnv)
+
+
+def curriculum_config(**changes):
+    algo = DADDPGConfig(hidden=(32, 32), batch_size=32, warmup_steps=100, buffer_size=5000,
+                        twin_critics=True, target_noise=0.2, reward_scale=0.00025)
+    base = dict(condition="none", episodes=16, num_envs=4, eval_every=8, eval_episodes=4,
+                checkpoint_every=8, algo=algo, task={"max_episode_steps": 20},
+                start_probs=(0.4, 0.2, 0.4), her_share=0.8, seed=3)
+    base.update(changes)
+    return TrainConfig(**base)
+
+
+@pytest.mark.parametrize("heads", [False, True])
+def test_run_with_later_starts_and_hindsight_targets_resumes_exactly(tmp_path, heads):
+    """Start states and hindsight relabelling draw from the run's own seeded streams: a run
+    stopped at episode 8 and resumed gives the uninterrupted run's rows; the policy loads."""
+    from dualarm.training.policy import load_policy
+
+    train(curriculum_config(reward_heads=heads), tmp_path / "ref", progress=False)
+    train(curriculum_config(reward_heads=heads, episodes=8), tmp_path / "run", progress=False)
+    resume(tmp_path / "run", episodes=16, progress=False)
+    ref = rows(tmp_path / "ref" / "metrics.csv")
+    assert rows(tmp_path / "run" / "metrics.csv") == ref
+    assert max(int(r["subtask_left"]) for r in ref) == 2          # some arms started holding
+    _, agent, _ = load_policy(tmp_path / "run")
+    assert agent.num_heads == (3 if heads else 1)
+    assert rows(tmp_path / "run" / "eval.csv", drop=("wall_time_s",)) == \
+        rows(tmp_path / "ref" / "eval.csv", drop=("wall_time_s",))
+
+
+def test_curriculum_options_are_checked(tmp_path):
+    with pytest.raises(ValueError, match="her_share"):
+        TrainConfig(her_share=1.5)
+    with pytest.raises(ValueError, match="n_step"):
+        TrainConfig(her_share=0.5, algo=DADDPGConfig(n_step=3))
+    with pytest.raises(Exception, match="start_probs"):
+        Trainer.start(small_toy_config(start_probs=(0.0, 0.0, 1.0)), tmp_path / "toy",
+                      make_env=TwoPointMassEnv, progress=False)

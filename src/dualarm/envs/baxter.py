@@ -78,6 +78,119 @@ def observation_layout(joint_angles: bool) -> dict[str, slice]:
     return layout
 
 
+def check_start_probs(probs) -> np.ndarray | None:
+    """Validate start probabilities (reach, grasp, align): 3 non-negative numbers summing to 1.
+
+    Returns them as an array, or None for None and for (1, 0, 0) (the normal reset).
+    """
+    if probs is None:
+        return None
+    p = np.asarray(probs, dtype=float)
+    if p.shape != (3,) or not np.isfinite(p).all() or (p < 0).any() or abs(p.sum() - 1) > 1e-6:
+        raise ValueError("start probabilities must be 3 non-negative numbers (reach, grasp, "
+                         f"align) that sum to 1, got {list(np.ravel(p))}")
+    return None if p[0] == 1.0 else p / p.sum()
+
+
+def solve_grip_ik(model: mujoco.MjModel, data: mujoco.MjData, ix: "_Indices",
+                  grip: np.ndarray, iterations: int = 20, tolerance: float = 1e-4) -> float:
+    """Set both arms' joints in ``data.qpos`` so that the grip sites reach ``grip`` (2, 3) m
+    with the gripper pointing down (``GRIP_DOWN_QUAT``); damped least squares from the
+    current joints, within Baxter's joint limits.
+
+    Returns:
+        the largest remaining position error (m).
+    """
+    jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+    want, have, inverse, error = np.array(GRIP_DOWN_QUAT), np.zeros(4), np.zeros(4), np.zeros(4)
+    rotation = np.zeros(3)
+    worst = math.inf
+    for _ in range(iterations):
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        worst = 0.0
+        for arm in range(2):
+            site = ix.grip_site[arm]
+            offset = grip[arm] - data.site_xpos[site]
+            worst = max(worst, float(np.abs(offset).max()))
+            mujoco.mju_mat2Quat(have, data.site_xmat[site])
+            mujoco.mju_negQuat(inverse, have)
+            mujoco.mju_mulQuat(error, want, inverse)
+            mujoco.mju_quat2Vel(rotation, error, 1.0)
+            mujoco.mj_jacSite(model, data, jacp, jacr, site)
+            jac = np.vstack([jacp[:, ix.arm_dof[arm]], jacr[:, ix.arm_dof[arm]]])   # (6, 7)
+            step = jac.T @ np.linalg.solve(jac @ jac.T + 1e-4 * np.eye(6),
+                                           np.concatenate([offset, rotation]))
+            q = data.qpos[ix.arm_qpos[arm]] + step
+            data.qpos[ix.arm_qpos[arm]] = np.clip(q, BAXTER_JOINT_LIMITS[:, 0], BAXTER_JOINT_LIMITS[:, 1])
+        if worst < tolerance:
+            break
+    mujoco.mj_kinematics(model, data)
+    return worst
+
+
+#: The reward split into the critics' heads (``DADDPG``'s ``head_scales``): per-step terms,
+#: goal bonuses (rg1, rg2), coordination bonus (rc).
+HEAD_TERMS = (("distance", "guide"), ("goal",), ("coordinate",))
+
+
+class TargetRelabeller:
+    """Hindsight goals for the task: each arm's target replaced by where its box was later.
+
+    ``achieved(next_obs)`` gives the box positions (n, 2, 3); ``relabel`` rewrites a batch's
+    rows for new targets: the target in both arms' observations, the distance term of an
+    arm that holds its box (its goal is then the target, Eq. 17), the coordination bonus
+    and the end of the episode (both boxes held within ``align_threshold`` of their new
+    targets, Eq. 18). The guide term and rg1/rg2 do not depend on the targets. Rewards may be
+    whole (n, 2) or split as ``HEAD_TERMS`` (n, 2, 3); observations are (n, 2, O) laid out
+    as ``observation_layout`` says.
+    """
+
+    def __init__(self, config: TaskConfig, joint_angles: bool):
+        if config.goal != "subtask":
+            raise ValueError("hindsight targets follow the 'subtask' goal of the distance term")
+        self.config = config
+        self.layout = observation_layout(joint_angles)
+        self.closed_gap = closed_gap(config)
+        self.lifted_z = config.scene.table_height + config.scene.box_half_size + config.lift_height
+
+    def achieved(self, next_obs: np.ndarray) -> np.ndarray:
+        """Box positions (n, 2, 3) m in observations (n, 2, O)."""
+        return next_obs[..., self.layout["object_pos"]]
+
+    def _terms(self, next_obs: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(distance to the target of held boxes' arms (n, 2) m or 0, success (n,)) for targets."""
+        c, L = self.config, self.layout
+        grip, box = next_obs[..., L["grip_pos"]], next_obs[..., L["object_pos"]]
+        rel = next_obs[..., L["object_rel_pos"]]
+        held = ((np.sqrt((rel * rel).sum(-1)) < c.grasp_tolerance)
+                & (finger_gap(next_obs[..., L["fingers"]]) <= self.closed_gap)
+                & (box[..., 2] > self.lifted_z))
+        to_target = targets - grip
+        distance = np.where(held, -np.sqrt((to_target * to_target).sum(-1)), 0.0)
+        off = box - targets
+        aligned = held & ((off * off).sum(-1) < c.align_threshold ** 2)
+        return distance, aligned.all(axis=-1)
+
+    def relabel(self, batch: dict, rows: np.ndarray, targets: np.ndarray) -> None:
+        """Rewrite ``batch`` rows ``rows`` (obs, next_obs, rew, done) for targets (len(rows), 2, 3)."""
+        c, where = self.config, self.layout["target_pos"]
+        nxt = batch["next_obs"][rows]
+        old_distance, old_success = self._terms(nxt, nxt[..., where])
+        new_distance, new_success = self._terms(nxt, targets)
+        batch["obs"][rows, :, where] = targets
+        batch["next_obs"][rows, :, where] = targets
+        distance = new_distance - old_distance                         # (k, 2)
+        bonus = c.coordinate_bonus * (new_success.astype(float) - old_success)[:, None]
+        rew = batch["rew"]
+        if rew.ndim == 3:                 # heads (distance + guide, goal, coordinate)
+            rew[rows, :, 0] += distance
+            rew[rows, :, 2] = c.coordinate_bonus * new_success[:, None]
+        else:
+            rew[rows] += distance + bonus
+        batch["done"][rows] = new_success
+
+
 @dataclass
 class StepResult:
     """One environment step for both arms (rows left, right).
@@ -139,6 +252,8 @@ class _Indices:
 
         self.arm_qpos = np.array([[model.jnt_qposadr[jid(f"{a}_{j}")] for j in BAXTER_JOINT_NAMES]
                                   for a in ARMS])
+        self.arm_dof = np.array([[model.jnt_dofadr[jid(f"{a}_{j}")] for j in BAXTER_JOINT_NAMES]
+                                 for a in ARMS])
         self.arm_ctrl = np.array([[aid(f"{a}_{j}_servo") for j in BAXTER_JOINT_NAMES] for a in ARMS])
         fingers = [[f"{a}_gripper_r_finger_joint", f"{a}_gripper_l_finger_joint"] for a in ARMS]
         self.finger_qpos = np.array([[model.jnt_qposadr[jid(n)] for n in pair] for pair in fingers])
@@ -188,16 +303,23 @@ class BaxterBatch:
         num_envs: number of copies.
         render_size: (height, width) of rendered frames in pixels.
 
+        start_probs: probabilities (reach, grasp, align) with which each arm starts an
+            episode at that sub-task (drawn per arm; see ``reset_env``). None: every episode
+            starts at reach, the task's normal reset. Training curricula only; evaluations
+            use the normal reset.
+
     Actions are (num_envs, 2, 4) in cartesian mode (dx, dy, dz, grip) and (num_envs, 2, 8)
     in joint mode (7 joint deltas, grip), arms in the order left, right, each value in
     [-1, 1]; values outside are clipped. grip -1 opens the fingers fully, +1 closes them.
     """
 
     def __init__(self, config: TaskConfig = TaskConfig(), constraints: ConstraintSet | None = None,
-                 num_envs: int = 1, render_size: tuple[int, int] = (480, 640)):
+                 num_envs: int = 1, render_size: tuple[int, int] = (480, 640),
+                 start_probs: tuple[float, float, float] | None = None):
         if num_envs < 1:
             raise ValueError(f"num_envs must be at least 1, got {num_envs}")
         self.config = config
+        self.start_probs = check_start_probs(start_probs)
         if config.condition == "none":
             if constraints is not None:
                 raise ValueError("condition 'none' has no guide term: pass constraints=None")
@@ -287,19 +409,62 @@ class BaxterBatch:
             d.mocap_pos[ix.hand_mocap] = d.site_xpos[ix.grip_site]
             d.mocap_quat[ix.hand_mocap] = GRIP_DOWN_QUAT
         mujoco.mj_forward(m, d)
+        # Drawn after the placement, so a seed places boxes and targets the same either way.
+        starts = (r.choice(3, size=2, p=self.start_probs) if self.start_probs is not None
+                  else np.zeros(2, dtype=np.int64))
+        if starts.any():
+            self._start_later(i, starts, r)
 
         self.step_count[i] = 0
-        self.reached_once[i] = False
-        self.grasped_once[i] = False
         self.success_paid[i] = False
         self.grip_pos[i] = d.site_xpos[ix.grip_site]
         self._qpos[i] = d.qpos[ix.qpos_gather]
         self._qvel[i] = d.qvel[ix.qvel_gather]
         self.needs_reset[i] = False
         state = self._evaluate(self.grip_pos[i:i + 1], self._qpos[i:i + 1], self.target_pos[i:i + 1])
+        # What an arm holds at the start counts as earned before the episode: rg1 and rg2
+        # are not paid for it (at the normal reset neither predicate holds).
+        self.reached_once[i] = state["reached"][0]
+        self.grasped_once[i] = state["grasped"][0]
         obs = self._observe(state, self._qvel[i:i + 1], np.zeros((1, 2, 3)), self.target_pos[i:i + 1])
         zeros = {k: np.zeros((1, 2)) for k in ("distance", "guide", "goal", "coordinate")}
         return obs[0], _one_info(self._info(state, zeros, np.zeros(1, dtype=bool)), 0)
+
+    def _start_later(self, i: int, starts: np.ndarray, rng: np.random.Generator) -> None:
+        """Put the arms of copy ``i`` whose ``starts`` entry is 1 or 2 at that sub-task.
+
+        grasp (1): the grip site at the resting box's centre, fingers open (reach done).
+        align (2): the box lifted to a point a uniform fraction of the way from its start to
+        its target (at least ``lift_height`` + 1 cm above its resting height), between
+        fingers closing on it (reach and grasp done). The arm's joints come from inverse
+        kinematics with the gripper pointing down; a short settle (two control periods)
+        lets the fingers take hold. Arms at reach (0) stay at home.
+        """
+        c, m, d, ix = self.config, self.model, self.datas[i], self.ix
+        grip = d.site_xpos[ix.grip_site].copy()               # (2, 3) home grip sites
+        box = self.box_start_pos[i].copy()
+        for arm in np.flatnonzero(starts):
+            if starts[arm] == 2:
+                p = box[arm] + rng.uniform() * (self.target_pos[i, arm] - box[arm])
+                p[2] = max(p[2], self.box_rest_z + c.lift_height + 0.01)
+                box[arm] = p
+            grip[arm] = box[arm]
+        solve_grip_ik(m, d, ix, grip)
+        d.qpos[ix.box_pos] = box
+        d.qvel[:] = 0.0
+        held = starts == 2
+        touching = 0.5 * (2 * c.scene.box_half_size + 0.001 - _GAP_AT_ZERO)  # l = -r at contact
+        d.qpos[ix.finger_qpos[held]] = np.array([-touching, touching])
+        d.ctrl[ix.finger_ctrl[held]] = FINGER_CLOSED
+        if self.cartesian:
+            mujoco.mj_kinematics(m, d)
+            d.mocap_pos[ix.hand_mocap] = d.site_xpos[ix.grip_site]
+        else:
+            d.ctrl[ix.arm_ctrl] = d.qpos[ix.arm_qpos]
+            self.joint_command[i] = d.qpos[ix.arm_qpos]
+        mujoco.mj_forward(m, d)
+        mujoco.mj_step(m, d, nstep=2 * c.substeps)
+        mujoco.mj_kinematics(m, d)
 
     # ------------------------------------------------------------------- step
     def check_actions(self, action) -> np.ndarray:

@@ -52,23 +52,38 @@ class DADDPG:
         obs_sizes: observation width of each agent.
         act_sizes: action width of each agent (actions in [-1, 1]).
         seed: seeds the initial weights.
+        head_scales: reward decomposition (van Seijen et al. 2017): the reward arrives as K
+            components per agent, and each critic has K outputs, head k learning the return
+            of component k times ``head_scales[k]``, so that a shaping term of tenths and a
+            bonus of thousands each fill a head at a scale of about one. Eq. 13 holds per
+            head; their sum is Q_i. The actor climbs that sum in the first head's units
+            (sum_k q_k head_scales[0] / head_scales[k]). None: one head, rewards times
+            ``config.reward_scale``.
     """
 
     def __init__(self, config: DADDPGConfig, obs_sizes: tuple[int, ...],
-                 act_sizes: tuple[int, ...], seed: int = 0):
+                 act_sizes: tuple[int, ...], seed: int = 0,
+                 head_scales: tuple[float, ...] | None = None):
         self.config = c = config
         self.num_agents = a = len(obs_sizes)
         self.obs_sizes, self.act_sizes = tuple(obs_sizes), tuple(act_sizes)
         self.obs_size, self.act_size = max(obs_sizes), max(act_sizes)
+        self.head_scales = tuple(float(x) for x in (head_scales or (c.reward_scale,)))
+        if not all(x > 0 for x in self.head_scales):
+            raise ValueError(f"head_scales must be positive, got {self.head_scales}")
+        self.num_heads = h = len(self.head_scales)
+        self._scales = torch.tensor(self.head_scales, dtype=torch.float32)
+        # weight of each head in the actor's objective: its return in the first head's units
+        self._head_weights = self._scales[0] / self._scales
         g = torch.Generator().manual_seed(seed)
         state_size = a * self.obs_size
         # Critic stacks: [Q_1 .. Q_A] or, with twin critics, [Q_1 .. Q_A, Q2_1 .. Q2_A].
         self.critics_per_agent = 2 if c.twin_critics else 1
         k = a * self.critics_per_agent
         self.actor = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True, g, final_scale=0.1)
-        self.critic = StackedMLP(k, state_size + self.act_size, 1, c.hidden, False, g, final_scale=0.1)
+        self.critic = StackedMLP(k, state_size + self.act_size, h, c.hidden, False, g, final_scale=0.1)
         self.actor_target = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True)
-        self.critic_target = StackedMLP(k, state_size + self.act_size, 1, c.hidden)
+        self.critic_target = StackedMLP(k, state_size + self.act_size, h, c.hidden)
         self.actor_target.load_state_dict(self.actor.state_dict())
         self.critic_target.load_state_dict(self.critic.state_dict())
         for p in (*self.actor_target.parameters(), *self.critic_target.parameters()):
@@ -119,14 +134,21 @@ class DADDPG:
         return torch.cat([s, actions.repeat(self.critics_per_agent, 1, 1)], -1)
 
     def _per_agent(self, q: torch.Tensor) -> torch.Tensor:
-        """Critic outputs (K, B, 1) -> (critics_per_agent, A, B, 1)."""
+        """Critic outputs (K, B, H) -> (critics_per_agent, A, B, H)."""
         return q.view(self.critics_per_agent, self.num_agents, *q.shape[1:])
+
+    def q_total(self, q: torch.Tensor) -> torch.Tensor:
+        """Heads (..., H) -> Q (..., 1) in the first head's units (the actor's objective)."""
+        if self.num_heads == 1:
+            return q
+        return (q * self._head_weights).sum(-1, keepdim=True)
 
     def update(self, batch: dict[str, torch.Tensor], demo_rows: int = 0) -> dict[str, float]:
         """One gradient step of both agents' critics and actors, then the target update.
 
         Args:
-            batch: obs and next_obs (B, A, O), act (B, A, U), rew (B, A), done (B,), and
+            batch: obs and next_obs (B, A, O), act (B, A, U), rew (B, A) or, with reward
+                heads, (B, A, H), done (B,), and
                 optionally steps (B,): the steps each transition spans (n-step; default 1).
             demo_rows: the last ``demo_rows`` rows of the batch are demonstrations: with
                 ``bc_weight`` > 0 the actor is also pulled towards their actions where the
@@ -143,7 +165,8 @@ class DADDPG:
         o = norm(batch["obs"]).transpose(0, 1)                     # (A, B, O)
         o2 = norm(batch["next_obs"]).transpose(0, 1)
         a_taken = batch["act"].transpose(0, 1)                     # (A, B, U)
-        r = batch["rew"].t().unsqueeze(-1) * c.reward_scale        # (A, B, 1)
+        rew = batch["rew"] if batch["rew"].dim() == 3 else batch["rew"].unsqueeze(-1)
+        r = rew.transpose(0, 1) * self._scales                     # (A, B, H)
         not_done = (1.0 - batch["done"]).view(1, -1, 1)            # (1, B, 1)
         steps = batch.get("steps")
         gamma = (c.gamma if steps is None or c.n_step == 1     # gamma^n for n-step transitions
@@ -165,17 +188,18 @@ class DADDPG:
             if c.value_rescale:
                 y = value_h(y)
         q = self._per_agent(self.critic(self._critic_input(o, a_taken)))
-        critic_loss = ((y - q) ** 2).mean(dim=(2, 3)).sum()
+        critic_loss = ((y - q) ** 2).mean(dim=(2, 3)).sum()       # per head and sample, summed over critics
 
         # Eq. 14: ascend Q_i(s, mu_i(s_i)) through the actor only (the critic is held fixed)
         a_pi = self.actor(o) * self.action_mask
         self.critic.requires_grad_(False)
-        q_pi = self._per_agent(self.critic(self._critic_input(o, a_pi)))[0]
+        q_pi = self.q_total(self._per_agent(self.critic(self._critic_input(o, a_pi)))[0])
         self.critic.requires_grad_(True)
         actor_loss = (-q_pi.mean(dim=(1, 2)) + c.action_l2 * (a_pi ** 2).mean(dim=(1, 2))).sum()
         if demo_rows and c.bc_weight > 0:
             # behaviour cloning on the demonstrations the critic prefers to the actor's actions
-            better = (q[0, :, -demo_rows:] > q_pi[:, -demo_rows:]).detach().float()  # (A, D, 1)
+            q_demo = self.q_total(q[0, :, -demo_rows:])
+            better = (q_demo > q_pi[:, -demo_rows:]).detach().float()              # (A, D, 1)
             miss = ((a_pi[:, -demo_rows:] - a_taken[:, -demo_rows:]) ** 2).sum(-1, keepdim=True)
             actor_loss = actor_loss + c.bc_weight * (better * miss).mean(dim=(1, 2)).sum()
 
@@ -201,7 +225,7 @@ class DADDPG:
                                  list(self.critic.parameters()), tau)
         self.updates += 1
         return {"critic_loss": critic_loss.item(), "actor_loss": actor_loss.item(),
-                "q_mean": (value_h_inverse(q[0]) if c.value_rescale else q[0]).mean().item()}
+                "q_mean": self.q_total(value_h_inverse(q[0]) if c.value_rescale else q[0]).mean().item()}
 
     def _clip(self, net: torch.nn.Module) -> None:
         """Scale each agent's gradients so that their global norm is at most grad_clip."""
@@ -231,13 +255,16 @@ class DADDPG:
 
     def _shapes(self) -> dict:
         return {"obs_sizes": list(self.obs_sizes), "act_sizes": list(self.act_sizes),
-                "hidden": list(self.config.hidden)}
+                "hidden": list(self.config.hidden), "head_scales": list(self.head_scales)}
 
     def _restore(self, state: dict, parts: tuple[str, ...], what: str) -> None:
         """Load ``parts`` from ``state`` after checking the network shapes match."""
         for key, mine in self._shapes().items():
-            if list(state[key]) != mine:
-                raise ValueError(f"{key} {tuple(state[key])} of the saved {what} does not match "
+            theirs = state.get(key, [self.config.reward_scale] if key == "head_scales" else None)
+            if key == "head_scales" and len(mine) == 1 and len(theirs) == 1:
+                continue          # one head: its scale is the config's reward_scale, checked there
+            if theirs is None or list(theirs) != mine:
+                raise ValueError(f"{key} {tuple(theirs or ())} of the saved {what} does not match "
                                  f"this one's {tuple(mine)}")
         for part in parts:
             getattr(self, part).load_state_dict(state[part])

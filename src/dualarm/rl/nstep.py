@@ -16,7 +16,7 @@ def nstep_episode(obs: np.ndarray, act: np.ndarray, rew: np.ndarray, next_obs: n
     Args:
         obs, next_obs: (T, A, O) observations before and after each step.
         act: (T, A, U) actions taken.
-        rew: (T, A) rewards.
+        rew: (T, A) rewards, or (T, A, H) reward components (summed component-wise).
         terminated: the last step terminated the episode (success or failure, not a time limit).
         n: steps per transition (n >= 1; n = 1 returns the one-step transitions).
         gamma: discount per step.

@@ -5,24 +5,30 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-_FIELDS = ("obs", "act", "rew", "next_obs", "done", "steps")
+_FIELDS = ("obs", "act", "rew", "next_obs", "done", "steps", "left")
 
 
 class ReplayBuffer:
     """Transitions of a two-agent (or A-agent) environment, stored as float32 arrays.
 
     Shapes: obs and next_obs (capacity, A, obs_size), act (capacity, A, act_size),
-    rew (capacity, A), done (capacity,) 1.0 where the episode terminated (not truncated:
+    rew (capacity, A), or (capacity, A, reward_size) for rewards split into components
+    (``reward_size`` > 1, the critics' reward heads), done (capacity,) 1.0 where the episode terminated (not truncated:
     a time limit is not a terminal state, so it still bootstraps), steps (capacity,) the
     number of environment steps the transition spans (n-step returns: ``rew`` is then the
-    discounted sum of that many rewards and ``next_obs`` the observation that many steps on).
+    discounted sum of that many rewards and ``next_obs`` the observation that many steps on),
+    left (capacity,) how many transitions of the same episode follow this one in storage
+    (hindsight relabelling draws its future goals from them; 0 when episodes are not stored
+    whole).
     """
 
-    def __init__(self, capacity: int, num_agents: int, obs_size: int, act_size: int):
+    def __init__(self, capacity: int, num_agents: int, obs_size: int, act_size: int,
+                 reward_size: int = 1):
         self.capacity = int(capacity)
+        rew = (num_agents,) if reward_size == 1 else (num_agents, reward_size)
         self.shapes = {"obs": (num_agents, obs_size), "act": (num_agents, act_size),
-                       "rew": (num_agents,), "next_obs": (num_agents, obs_size), "done": (),
-                       "steps": ()}
+                       "rew": rew, "next_obs": (num_agents, obs_size), "done": (),
+                       "steps": (), "left": ()}
         # np.empty of a large capacity reserves address space only: pages fill as we write.
         self.data = {k: np.empty((self.capacity, *s), dtype=np.float32) for k, s in self.shapes.items()}
         self.size = 0
@@ -31,11 +37,12 @@ class ReplayBuffer:
     def __len__(self) -> int:
         return self.size
 
-    def add(self, obs, act, rew, next_obs, done, steps=1) -> None:
-        """Append N transitions (leading axis N on every argument; ``steps`` may be a scalar)."""
+    def add(self, obs, act, rew, next_obs, done, steps=1, left=0) -> None:
+        """Append N transitions (leading axis N on every argument; ``steps`` and ``left`` may
+        be scalars)."""
         n = len(obs)
         idx = (self.next + np.arange(n)) % self.capacity
-        for key, value in zip(_FIELDS, (obs, act, rew, next_obs, done, steps)):
+        for key, value in zip(_FIELDS, (obs, act, rew, next_obs, done, steps, left)):
             self.data[key][idx] = value
         self.next = int((self.next + n) % self.capacity)
         self.size = min(self.size + n, self.capacity)
@@ -44,6 +51,14 @@ class ReplayBuffer:
         """A uniform batch (with replacement) as float32 tensors with a leading batch axis."""
         idx = rng.integers(0, self.size, size=batch_size)
         return {k: torch.from_numpy(v[idx]) for k, v in self.data.items()}
+
+    def add_episode(self, obs, act, rew, next_obs, terminated: bool) -> None:
+        """Append one finished episode of T one-step transitions, in order, so that each
+        transition knows the ``left`` transitions that follow it."""
+        t_len = len(obs)
+        done = np.zeros(t_len, dtype=np.float32)
+        done[-1] = float(terminated)
+        self.add(obs, act, rew, next_obs, done, 1, np.arange(t_len - 1, -1, -1))
 
     def state_dict(self) -> dict:
         """The filled rows as tensors, in storage order, and the write position (a checkpoint
@@ -57,6 +72,9 @@ class ReplayBuffer:
             raise ValueError(f"the saved replay buffer holds {size} transitions, more than "
                              f"this buffer's capacity {self.capacity}")
         for k, shape in self.shapes.items():
+            if k == "left" and k not in state:     # checkpoints from before the field
+                self.data[k][:size] = 0.0
+                continue
             saved = state[k]
             if tuple(saved.shape[1:]) != shape:
                 raise ValueError(f"replay field {k!r} has shape {tuple(saved.shape[1:])} per "

@@ -32,6 +32,19 @@ class TrainConfig:
         checkpoint_every: training episodes between checkpoints (0: only by time and at the end).
         checkpoint_minutes: wall-clock minutes between checkpoints.
         torch_threads: PyTorch intra-op threads (1 gives bit-reproducible runs).
+        start_probs: probabilities (reach, grasp, align) with which each arm begins a
+            training episode at that sub-task: at its box with the fingers open, or holding
+            its box part of the way to its target (Andrychowicz et al. 2017 started
+            pick-and-place episodes with the box in the gripper). Evaluations always start
+            from the normal reset. (1, 0, 0): every episode starts normally, as in the paper.
+        her_share: share of every replay batch whose targets are replaced by the box
+            positions reached later in the same episode, rewards recomputed (hindsight
+            experience replay, Andrychowicz et al. 2017, "future" goals); 0 turns it off.
+        reward_heads: split each agent's reward into three components, each learned by its
+            own critic head at its own scale (``DADDPG``'s ``head_scales``): the per-step
+            terms (distance + guide) times ``algo.reward_scale``, the goal bonuses divided
+            by rg2 and the coordination bonus divided by rc. The reward and the objective
+            stay the paper's; only how the critic represents them changes.
         demo_episodes: episodes of the scripted expert recorded into a demonstration buffer
             before training (used by ``algo.demo_batch_size`` and ``algo.bc_weight``); 0 for
             none, as in the paper's three conditions. Baxter task, cartesian control only.
@@ -49,6 +62,9 @@ class TrainConfig:
     checkpoint_every: int = 0
     checkpoint_minutes: float = 2.0
     torch_threads: int = 1
+    start_probs: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    reward_heads: bool = False
+    her_share: float = 0.0
     demo_episodes: int = 0
     algo: DADDPGConfig = field(default_factory=DADDPGConfig)
 
@@ -70,6 +86,15 @@ class TrainConfig:
         if self.demo_episodes and self.task_config().control != "cartesian":
             raise ValueError("demo_episodes: the scripted expert demonstrates cartesian control "
                              "only, not task.control 'joint'")
+        from dualarm.envs.baxter import check_start_probs
+        try:
+            check_start_probs(self.start_probs)
+        except ValueError as exc:
+            raise ValueError(f"start_probs: {exc}") from None
+        if not 0 <= self.her_share <= 1:
+            raise ValueError(f"her_share must be in [0, 1], got {self.her_share}")
+        if self.her_share and self.algo.n_step != 1:
+            raise ValueError("her_share: hindsight relabelling needs one-step transitions (algo.n_step 1)")
         if self.checkpoint_minutes <= 0:
             raise ValueError(f"checkpoint_minutes must be > 0, got {self.checkpoint_minutes}")
 
@@ -97,6 +122,7 @@ class TrainConfig:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["algo"] = self.algo.to_dict()
+        d["start_probs"] = [float(p) for p in self.start_probs]
         d["task"] = {k: list(v) if isinstance(v, tuple) else v for k, v in self.task.items()}
         return d
 
@@ -110,6 +136,8 @@ class TrainConfig:
             raise InputError(f"{where}: unknown field(s) {unknown}; known: {sorted(known)}")
         d = dict(d)
         try:
+            if "start_probs" in d:
+                d["start_probs"] = tuple(float(p) for p in d["start_probs"])
             if "algo" in d:
                 d["algo"] = DADDPGConfig.from_dict(d["algo"] or {}, where=f"{where}: algo")
             return cls(**d)

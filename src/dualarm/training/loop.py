@@ -22,7 +22,9 @@ import numpy as np
 import torch
 
 from dualarm.errors import DualarmError, InputError
+from dualarm.envs.baxter import HEAD_TERMS, TargetRelabeller
 from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
+from dualarm.rl.her import HindsightSampler
 from dualarm.rl.nstep import nstep_episode
 from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import TrainConfig
@@ -53,16 +55,20 @@ class TrainResult:
 
 
 def make_vector_env(config: TrainConfig, num_envs: int,
-                    make_env: Callable[[], object] | None = None, constraints=None) -> VectorEnv:
+                    make_env: Callable[[], object] | None = None, constraints=None,
+                    training: bool = False) -> VectorEnv:
     """Copies of the run's environment: the Baxter task, or ``make_env()`` (a ParallelEnv).
 
     ``constraints``: the run's ``ConstraintSet`` if already loaded (else read from the config).
+    ``training``: the copies that collect training episodes, which start as
+    ``config.start_probs`` says; otherwise (evaluation) every episode starts normally.
     """
     if make_env is not None:
         return ParallelEnvVector(make_env, num_envs)
     if constraints is None:
         constraints = config.load_constraints()
-    return BaxterVector(config.task_config(), constraints, num_envs)
+    return BaxterVector(config.task_config(), constraints, num_envs,
+                        config.start_probs if training else None)
 
 
 class Trainer:
@@ -85,13 +91,35 @@ class Trainer:
         self.progress = progress
         torch.set_num_threads(config.torch_threads)
         constraints = None if make_env is not None else config.load_constraints()
-        self.vec = make_vector_env(config, config.num_envs, make_env, constraints)
+        self.vec = make_vector_env(config, config.num_envs, make_env, constraints, training=True)
         self.eval_vec = (make_vector_env(config, min(config.num_envs, config.eval_episodes),
                                          make_env, constraints)
                          if config.eval_every and config.eval_episodes else None)
         v = self.vec
-        self.agent = DADDPG(config.algo, v.obs_sizes, v.act_sizes, seed=config.seed)
-        self.buffer = ReplayBuffer(config.algo.buffer_size, 2, v.obs_size, v.act_size)
+        self.head_terms = None       # reward heads: the env's terms summed into each head
+        head_scales = None
+        if config.reward_heads:
+            if make_env is not None:
+                raise InputError("reward_heads: the reward is split by the Baxter task's named "
+                                 "terms; a custom environment has none")
+            task = config.task_config()
+            self.head_terms = HEAD_TERMS
+            head_scales = (config.algo.reward_scale, 1.0 / max(task.grasp_bonus, task.reach_bonus),
+                           1.0 / task.coordinate_bonus)
+        if make_env is not None and config.start_probs != (1.0, 0.0, 0.0):
+            raise InputError("start_probs: later starts are defined for the Baxter task only")
+        self.agent = DADDPG(config.algo, v.obs_sizes, v.act_sizes, seed=config.seed,
+                            head_scales=head_scales)
+        self.buffer = ReplayBuffer(config.algo.buffer_size, 2, v.obs_size, v.act_size,
+                                   self.agent.num_heads)
+        self.sampler = self.buffer
+        if config.her_share > 0:
+            if make_env is not None:
+                raise InputError("her_share: hindsight targets are defined for the Baxter task only")
+            task = config.task_config()
+            relabeller = TargetRelabeller(task, task.observes_joint_angles)
+            self.sampler = HindsightSampler(self.buffer, relabeller.achieved, relabeller.relabel,
+                                            config.her_share)
         # Demonstrations are recorded again on resume (the expert and the physics are
         # deterministic); the normaliser's statistics then come from the checkpoint.
         self.demos = None
@@ -99,7 +127,8 @@ class Trainer:
             if make_env is not None:
                 raise InputError("demo_episodes: the scripted expert demonstrates the Baxter "
                                  "task only, not a custom environment")
-            self.demos = record_expert_demonstrations(config, v)
+            self.demos = record_expert_demonstrations(config, v, self.reward_of,
+                                                      self.agent.num_heads)
             self.agent.normalizer.update(self.demos.data["obs"][:len(self.demos)])
         self.rng = np.random.default_rng([config.seed, 1])
         self.episodes = 0
@@ -116,6 +145,11 @@ class Trainer:
         if v.has_subtasks:
             columns += [f"subtask_{a}" for a in v.agents]
         columns += [f"{t}_{a}" for t in v.term_names for a in v.agents]
+        #: Seconds spent since this process started training, by part of a round
+        #: (collect_s: the episodes, of which act_s choosing actions and store_s storing
+        #: transitions, the rest stepping the environments; update_s: gradient updates).
+        self.timing = {"collect_s": 0.0, "act_s": 0.0, "store_s": 0.0, "update_s": 0.0,
+                       "updates": 0, "episodes": 0, "env_steps": 0}
         self.metrics = CsvLog(paths.metrics, columns)
         self.eval_log = CsvLog(paths.eval, EVAL_COLUMNS)
         self._writer = None
@@ -206,33 +240,55 @@ class Trainer:
         mask = agent.action_mask[:, 0].numpy()
         seen = []
 
-        def act(obs):
-            if self.env_steps < a.warmup_steps:
-                return self.rng.uniform(-1.0, 1.0, (v.num_envs, 2, v.act_size)) * mask
-            return agent.act(obs, self.rng, explore=True)
+        timing = self.timing
+        collect_start = time.perf_counter()
 
-        episodes = [[] for _ in range(n)]      # n-step: each copy's steps until it ends
+        def act(obs):
+            t = time.perf_counter()
+            if self.env_steps < a.warmup_steps:
+                actions = self.rng.uniform(-1.0, 1.0, (v.num_envs, 2, v.act_size)) * mask
+            else:
+                actions = agent.act(obs, self.rng, explore=True)
+            timing["act_s"] += time.perf_counter() - t
+            return actions
+
+        whole = a.n_step > 1 or c.her_share > 0   # store each episode in one piece
+        episodes = [[] for _ in range(n)]         # then: each copy's steps until it ends
 
         def store(obs, actions, step, live):
-            if a.n_step == 1:
-                self.buffer.add(obs[live], actions[live], step.reward[live], step.obs[live],
+            t = time.perf_counter()
+            reward = self.reward_of(step)
+            if not whole:
+                self.buffer.add(obs[live], actions[live], reward[live], step.obs[live],
                                 step.terminated[live])
             else:
                 for i in live:
-                    episodes[i].append((obs[i], actions[i], step.reward[i], step.obs[i],
+                    episodes[i].append((obs[i], actions[i], reward[i], step.obs[i],
                                         step.terminated[i]))
             self.env_steps += len(live)
             seen.append(step.obs[live])
+            timing["store_s"] += time.perf_counter() - t
 
         r = run_round(v, seeds_for(c.seed, self.episodes, n), act, store)
+        t = time.perf_counter()
         for steps in episodes:
             if steps:
                 o, u, rew, o2, term = (np.stack(x) for x in zip(*steps))
-                self.buffer.add(*nstep_episode(o, u, rew, o2, bool(term[-1]), a.n_step, a.gamma))
+                if a.n_step > 1:
+                    self.buffer.add(*nstep_episode(o, u, rew, o2, bool(term[-1]), a.n_step, a.gamma))
+                else:
+                    self.buffer.add_episode(o, u, rew, o2, bool(term[-1]))
         round_steps = int(r.steps.sum())
         agent.normalizer.update(np.concatenate([r.first_obs, *seen]))
+        timing["store_s"] += time.perf_counter() - t
+        timing["collect_s"] += t - collect_start
+        t = time.perf_counter()
         losses = self._update(round_steps)
+        timing["update_s"] += time.perf_counter() - t
+        timing["updates"] += len(losses)
         wall = time.perf_counter() - started
+        timing["episodes"] += n
+        timing["env_steps"] += round_steps
         rows = []
         for i in range(n):
             self.episodes += 1
@@ -254,6 +310,12 @@ class Trainer:
             self.recent_return.append(float(r.returns[i].sum()))
         return rows, losses
 
+    def reward_of(self, step) -> np.ndarray:
+        """What the replay stores of a step's reward: (n, A), or (n, A, heads) split by term."""
+        if self.head_terms is None:
+            return step.reward
+        return np.stack([sum(step.terms[t] for t in terms) for terms in self.head_terms], axis=-1)
+
     def _update(self, round_steps: int) -> list[dict]:
         """The round's share of gradient updates (none during warm-up)."""
         a = self.config.algo
@@ -265,7 +327,7 @@ class Trainer:
         losses = []
         demo_rows = a.demo_batch_size if self.demos is not None else 0
         for _ in range(count):
-            batch = self.buffer.sample(self.rng, a.batch_size)
+            batch = self.sampler.sample(self.rng, a.batch_size)
             if demo_rows:
                 demos = self.demos.sample(self.rng, demo_rows)
                 batch = {k: torch.cat([batch[k], demos[k]]) for k in batch}

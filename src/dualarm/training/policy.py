@@ -37,7 +37,8 @@ def load_policy(run_dir: str | Path, which: str = "best") -> tuple[TrainConfig, 
     try:
         # a learner state holds the policy's parts (actor, normaliser, sizes) too
         state = payload["policy"] if "policy" in payload else payload["learner"]
-        agent = DADDPG(config.algo, state["obs_sizes"], state["act_sizes"], seed=config.seed)
+        agent = DADDPG(config.algo, state["obs_sizes"], state["act_sizes"], seed=config.seed,
+                       head_scales=state.get("head_scales"))
         agent.load_policy_state_dict(state)
         episodes = payload["eval"]["episode"] if "policy" in payload else payload["counters"]["episodes"]
     except (KeyError, ValueError, RuntimeError) as exc:

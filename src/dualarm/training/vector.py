@@ -71,15 +71,16 @@ class VectorEnv:
 
 
 class BaxterVector(VectorEnv):
-    """``num_envs`` copies of the Baxter reach-grasp-align task (``BaxterBatch``)."""
+    """``num_envs`` copies of the Baxter reach-grasp-align task (``BaxterBatch``; ``start_probs``
+    draws each arm's starting sub-task, for training curricula)."""
 
     term_names = ("distance", "guide", "goal", "coordinate")
     has_subtasks = True
 
-    def __init__(self, config, constraints=None, num_envs: int = 1):
+    def __init__(self, config, constraints=None, num_envs: int = 1, start_probs=None):
         from dualarm.envs.baxter import BaxterBatch
 
-        self.batch = BaxterBatch(config, constraints, num_envs)
+        self.batch = BaxterBatch(config, constraints, num_envs, start_probs=start_probs)
         self.num_envs = num_envs
         self.agents = ("left", "right")
         self.obs_sizes = (self.batch.obs_size,) * 2

@@ -1,0 +1,84 @@
+"""Training speed of whole rounds: episodes per second, split into stepping the environments,
+choosing actions, storing transitions and gradient updates, with the update's GFLOP/s next
+to the matrix-multiply roofline measured in the same run.
+
+Run:  python benchmarks/train_speed.py [--config FILE.yaml] [--episodes 160] [--threads 1]
+
+It trains a fresh run (in a temporary directory, evaluations off) for ``--episodes``
+episodes after a warm-up of ``--warmup`` episodes that is not counted, and reads the
+trainer's own timers (``Trainer.timing``). The last line extrapolates to a 10,000-episode
+run at the measured rate.
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+import torch
+import yaml
+
+from dualarm.training.config import TrainConfig
+from dualarm.training.loop import Trainer
+
+
+def matmul_gflops(m: int, k: int, n: int, seconds: float = 1.0) -> float:
+    """Best GFLOP/s of (m x k) @ (k x n) float32 over repeated timed bursts."""
+    a, b = torch.randn(m, k), torch.randn(k, n)
+    for _ in range(10):
+        a @ b
+    best, end = 0.0, time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        t = time.perf_counter()
+        for _ in range(20):
+            a @ b
+        best = max(best, 20 * 2 * m * k * n / (time.perf_counter() - t) / 1e9)
+    return best
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--config", type=Path, help="TrainConfig fields (YAML), as `dualarm train --config`")
+    parser.add_argument("--episodes", type=int, default=160, help="timed episodes (default 160)")
+    parser.add_argument("--warmup", type=int, default=64, help="untimed episodes first (default 64)")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    args = parser.parse_args()
+    fields = yaml.safe_load(args.config.read_text()) if args.config else {}
+    config = TrainConfig.from_dict({**fields, "eval_every": 0, "torch_threads": args.threads,
+                                    "episodes": args.warmup, "checkpoint_minutes": 1e6},
+                                   where=str(args.config or "defaults"))
+    print(f"torch {torch.__version__}, {args.threads} thread(s), "
+          f"{platform.processor() or platform.machine()}; condition {config.condition}, "
+          f"{config.num_envs} copies, hidden {config.algo.hidden}, batch {config.algo.batch_size}, "
+          f"{config.algo.updates_per_step} updates/step")
+    with tempfile.TemporaryDirectory() as tmp:
+        trainer = Trainer.start(config, Path(tmp) / "run", progress=False)
+        trainer.run()                                   # warm-up: replay fills, updates start
+        before = dict(trainer.timing)
+        trainer.config = config.with_(episodes=args.warmup + args.episodes)
+        start = time.perf_counter()
+        trainer.run()
+        total = time.perf_counter() - start
+        t = {k: trainer.timing[k] - before[k] for k in before}
+    env = t["collect_s"] - t["act_s"] - t["store_s"]
+    other = total - t["collect_s"] - t["update_s"]
+    flops = trainer.agent.update_flops() * t["updates"]
+    update_rate = flops / t["update_s"] / 1e9 if t["update_s"] else float("nan")
+    h = config.algo.hidden[-1]
+    roofline = matmul_gflops(2 * config.algo.batch_size, h, h)
+    print(f"episodes {t['episodes']}, env steps {t['env_steps']}, updates {t['updates']}, "
+          f"{total:.1f} s: {t['episodes'] / total:.2f} episodes/s, {t['env_steps'] / total:.0f} env steps/s")
+    for name, seconds in (("environment stepping", env), ("acting (policy + noise)", t["act_s"]),
+                          ("storing transitions", t["store_s"]), ("gradient updates", t["update_s"]),
+                          ("logging, checkpoints", other)):
+        print(f"  {name:<26} {seconds:7.1f} s  {100 * seconds / total:5.1f} %")
+    print(f"  update: {1e3 * t['update_s'] / max(t['updates'], 1):.2f} ms, {update_rate:.1f} GFLOP/s "
+          f"against a {roofline:.1f} GFLOP/s matmul roofline ({update_rate / roofline:.2f})")
+    print(f"10,000 episodes at this rate: {10_000 / (t['episodes'] / total) / 60:.1f} min")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,98 @@
+"""Hindsight relabelling of the arms' targets: rewards recomputed as the environment would."""
+
+from __future__ import annotations
+
+import dualarm  # noqa: F401
+
+import numpy as np
+import pytest
+
+from dualarm.envs.baxter import HEAD_TERMS, BaxterBatch, TargetRelabeller
+from dualarm.envs.config import TaskConfig
+from dualarm.envs.expert import ScriptedExpert
+from dualarm.rl.her import HindsightSampler
+from dualarm.rl.replay import ReplayBuffer
+
+
+def expert_episode(seed: int, task: TaskConfig, start_probs=None):
+    """(obs, act, reward (T, 2), heads (T, 2, 3), next_obs, terminated) of one expert episode."""
+    env = BaxterBatch(task, num_envs=1, start_probs=start_probs)
+    expert = ScriptedExpert(task)
+    obs = env.reset_env(0, seed)[0]
+    rows = []
+    for _ in range(task.max_episode_steps):
+        a = expert(obs)
+        step = env.step_all(a[None])
+        terms = step.info["reward_terms"]
+        heads = np.stack([sum(terms[t][0] for t in names) for names in HEAD_TERMS], -1)
+        rows.append((obs, a, step.reward[0], heads, step.obs[0], step.terminated[0]))
+        obs = step.obs[0]
+        if step.terminated[0] or step.truncated[0]:
+            break
+    o, a, r, h, o2, term = (np.stack(x) for x in zip(*rows))
+    return o, a, r, h, o2, bool(term[-1]), env
+
+
+@pytest.mark.parametrize("split", [False, True])
+def test_relabelling_with_the_real_targets_changes_nothing(split):
+    task = TaskConfig()
+    o, a, r, h, o2, term, env = expert_episode(3, task)
+    assert term                                   # the expert succeeds: rc on the last step
+    relabeller = TargetRelabeller(task, False)
+    rew = h if split else r
+    batch = {"obs": o.copy(), "next_obs": o2.copy(), "rew": rew.astype(np.float64).copy(),
+             "done": np.zeros(len(o))}
+    batch["done"][-1] = 1.0
+    rows = np.arange(len(o))
+    relabeller.relabel(batch, rows, np.repeat(env.target_pos[0][None], len(o), 0))
+    np.testing.assert_allclose(batch["rew"], rew, atol=1e-9)
+    np.testing.assert_array_equal(batch["done"], (np.arange(len(o)) == len(o) - 1))
+
+
+def test_relabelling_with_where_the_boxes_went_pays_the_coordination_bonus():
+    """Boxes held and carried, targets moved to where they were at step k: the bonus and the
+    end of the episode move to step k, and the held arms' distance is to the new targets."""
+    task = TaskConfig()
+    o, a, r, h, o2, term, env = expert_episode(5, task)
+    relabeller = TargetRelabeller(task, False)
+    held = np.flatnonzero([relabeller._terms(o2[t:t + 1], o2[t:t + 1, :, -3:])[0].all()
+                           and (relabeller._terms(o2[t:t + 1], o2[t:t + 1, :, -3:])[0] < 0).all()
+                           for t in range(len(o))])
+    k = int(held[len(held) // 2])                 # a step at which both boxes are carried
+    goals = relabeller.achieved(o2[k:k + 1])[0]
+    batch = {"obs": o.copy(), "next_obs": o2.copy(), "rew": h.astype(np.float64).copy(),
+             "done": np.zeros(len(o))}
+    relabeller.relabel(batch, np.arange(len(o)), np.repeat(goals[None], len(o), 0))
+    assert batch["done"][k] == 1.0 and batch["rew"][k, :, 2].tolist() == [task.coordinate_bonus] * 2
+    np.testing.assert_allclose(batch["obs"][:, :, -3:], np.broadcast_to(goals, (len(o), 2, 3)))
+    grip = o2[k, :, :3]
+    np.testing.assert_allclose(batch["rew"][k, :, 0] - h[k, :, 0],
+                               -np.linalg.norm(grip - goals, axis=1)
+                               + np.linalg.norm(grip - env.target_pos[0], axis=1), atol=1e-9)
+
+
+def test_future_goals_come_from_the_same_episode_later():
+    task = TaskConfig()
+    buffer = ReplayBuffer(1000, 2, 29, 4, 3)
+    ends = []
+    for seed in (1, 2):
+        o, a, r, h, o2, term, env = expert_episode(seed, task)
+        buffer.add_episode(o, a, h, o2, term)
+        ends.append(len(buffer))
+    seen = []
+
+    def relabel(batch, rows, goals):
+        seen.append((batch["obs"][rows], goals))
+
+    sampler = HindsightSampler(buffer, lambda nxt: nxt[..., 3:6], relabel, share=1.0)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        sampler.sample(rng, 64)
+    obs_rows, goals = seen[0][0], seen[0][1]
+    # every goal is a box position of a later-or-same transition of the same episode
+    nxt = buffer.data["next_obs"][:len(buffer)]
+    for row_obs, goal in zip(obs_rows, goals):
+        t = int(np.flatnonzero((buffer.data["obs"][:len(buffer)] == row_obs).all(axis=(1, 2)))[0])
+        episode_end = next(e for e in ends if t < e)
+        later = [u for u in range(t, episode_end) if np.array_equal(nxt[u, :, 3:6], goal)]
+        assert later, f"goal of transition {t} is not from its own episode's future"
