@@ -23,20 +23,7 @@ import yaml
 
 from dualarm.training.config import TrainConfig
 from dualarm.training.loop import Trainer
-
-
-def matmul_gflops(m: int, k: int, n: int, seconds: float = 1.0) -> float:
-    """Best GFLOP/s of (m x k) @ (k x n) float32 over repeated timed bursts."""
-    a, b = torch.randn(m, k), torch.randn(k, n)
-    for _ in range(10):
-        a @ b
-    best, end = 0.0, time.perf_counter() + seconds
-    while time.perf_counter() < end:
-        t = time.perf_counter()
-        for _ in range(20):
-            a @ b
-        best = max(best, 20 * 2 * m * k * n / (time.perf_counter() - t) / 1e9)
-    return best
+from update_speed import matmul_gflops   # this folder is on the path when run as a script
 
 
 def main() -> None:
@@ -68,7 +55,7 @@ def main() -> None:
     flops = trainer.agent.update_flops() * t["updates"]
     update_rate = flops / t["update_s"] / 1e9 if t["update_s"] else float("nan")
     h = config.algo.hidden[-1]
-    roofline = matmul_gflops(2 * config.algo.batch_size, h, h)
+    roofline = matmul_gflops(2 * config.algo.batch_size, h, h, 1.0)
     print(f"episodes {t['episodes']}, env steps {t['env_steps']}, updates {t['updates']}, "
           f"{total:.1f} s: {t['episodes'] / total:.2f} episodes/s, {t['env_steps'] / total:.0f} env steps/s")
     for name, seconds in (("environment stepping", env), ("acting (policy + noise)", t["act_s"]),

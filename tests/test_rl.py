@@ -40,6 +40,22 @@ def agent_mlp(net: StackedMLP, i: int, x: torch.Tensor) -> torch.Tensor:
     return torch.tanh(x) if net.tanh_output else x
 
 
+def critic_loss_by_hand(agent, batch, target) -> float:
+    """Eq. 13 recomputed agent by agent: sum over agents of mean (y_i - Q_i)^2, where
+    ``target(i, q2)`` gives y_i (B, heads) from the target critic's output q2 (B, heads)."""
+    norm = agent.normalizer.normalize
+    o, o2 = norm(batch["obs"]), norm(batch["next_obs"])
+    s, s2 = o.reshape(len(o), -1), o2.reshape(len(o2), -1)
+    total = 0.0
+    for i in range(2):
+        with torch.no_grad():
+            a2 = agent_mlp(agent.actor_target, i, o2[:, i]) * agent.action_mask[i, 0]
+            q2 = agent_mlp(agent.critic_target, i, torch.cat([s2, a2], -1))
+            q = agent_mlp(agent.critic, i, torch.cat([s, batch["act"][:, i]], -1))
+        total += float(((target(i, q2) - q) ** 2).mean())
+    return total
+
+
 def test_stacked_mlp_is_one_mlp_per_agent():
     net = StackedMLP(2, 4, 3, (8, 8), tanh_output=True, generator=torch.Generator().manual_seed(0))
     x = torch.randn(2, 10, 4)
@@ -244,17 +260,9 @@ def test_nstep_target_uses_gamma_to_the_steps_spanned():
     agent = small_agent(n_step=3)
     batch = random_batch()
     batch["steps"] = torch.tensor([1.0, 2, 3, 3, 1, 2, 3, 3])
-    norm = agent.normalizer.normalize
-    o, o2 = norm(batch["obs"]), norm(batch["next_obs"])
-    s, s2 = o.reshape(8, -1), o2.reshape(8, -1)
-    expected = 0.0
-    for i in range(2):
-        with torch.no_grad():
-            a2 = agent_mlp(agent.actor_target, i, o2[:, i]) * agent.action_mask[i, 0]
-            q2 = agent_mlp(agent.critic_target, i, torch.cat([s2, a2], -1))[:, 0]
-            y = batch["rew"][:, i] + agent.config.gamma ** batch["steps"] * (1 - batch["done"]) * q2
-            q = agent_mlp(agent.critic, i, torch.cat([s, batch["act"][:, i]], -1))[:, 0]
-        expected += float(((y - q) ** 2).mean())
+    gamma_n = agent.config.gamma ** batch["steps"] * (1 - batch["done"])
+    expected = critic_loss_by_hand(agent, batch,
+                                   lambda i, q2: (batch["rew"][:, i] + gamma_n * q2[:, 0])[:, None])
     assert agent.update(batch)["critic_loss"] == pytest.approx(expected, rel=1e-5)
 
 
@@ -321,23 +329,15 @@ def test_demo_settings_are_validated():
 
 def test_reward_heads_follow_equation_13_per_head_and_the_actor_sees_their_sum():
     """Head k regresses (scaled component k) + gamma Q'_k; the actor's Q is the heads' sum in
-    the first head's units, so two heads of one reward split in two equal a single head."""
+    the first head's units."""
     scales = (1.0, 0.05, 0.001)
     config = DADDPGConfig(hidden=(16, 16), batch_size=8, buffer_size=100)
     agent = DADDPG(config, OBS, ACT, seed=3, head_scales=scales)
     g = torch.Generator().manual_seed(5)
     batch = random_batch(rew=torch.randn(8, 2, 3, generator=g) * torch.tensor([1.0, 20.0, 1000.0]))
-    norm = agent.normalizer.normalize
-    o, o2 = norm(batch["obs"]), norm(batch["next_obs"])
-    s, s2 = o.reshape(8, -1), o2.reshape(8, -1)
-    expected = 0.0
-    for i in range(2):
-        with torch.no_grad():
-            a2 = agent_mlp(agent.actor_target, i, o2[:, i]) * agent.action_mask[i, 0]
-            q2 = agent_mlp(agent.critic_target, i, torch.cat([s2, a2], -1))            # (B, 3)
-            y = batch["rew"][:, i] * torch.tensor(scales) + config.gamma * (1 - batch["done"])[:, None] * q2
-            q = agent_mlp(agent.critic, i, torch.cat([s, batch["act"][:, i]], -1))
-        expected += float(((y - q) ** 2).mean())
+    not_done = (1 - batch["done"])[:, None]
+    expected = critic_loss_by_hand(agent, batch, lambda i, q2: batch["rew"][:, i] * torch.tensor(scales)
+                                   + config.gamma * not_done * q2)
     assert agent.update(batch)["critic_loss"] == pytest.approx(expected, rel=1e-5)
     heads = torch.tensor([[0.5, 0.1, 0.002]])
     torch.testing.assert_close(agent.q_total(heads), torch.tensor([[0.5 + 0.1 / 0.05 + 0.002 / 0.001]]))
