@@ -103,6 +103,9 @@ class Trainer:
                 raise InputError("reward_heads: the reward is split by the Baxter task's named "
                                  "terms; a custom environment has none")
             task = config.task_config()
+            if min(task.grasp_bonus, task.coordinate_bonus) <= 0:
+                raise InputError("reward_heads: the bonus heads are scaled by rg2 and rc, which "
+                                 "must be positive")
             self.head_terms = HEAD_TERMS
             head_scales = (config.algo.reward_scale, 1.0 / max(task.grasp_bonus, task.reach_bonus),
                            1.0 / task.coordinate_bonus)
