@@ -78,6 +78,32 @@ def observation_layout(joint_angles: bool) -> dict[str, slice]:
     return layout
 
 
+class GraspRule:
+    """The task's grasp and align predicates from the physical state, one definition for the
+    environment and for hindsight relabelling (lengths in m).
+
+    A box is grasped when it is within ``grasp_tolerance`` of the grip site, the finger gap
+    is at most the box width plus ``grasp_gap_margin`` and the box is ``lift_height`` above
+    its resting height; it is aligned when grasped and within ``align_threshold`` of its target.
+    """
+
+    def __init__(self, config: TaskConfig):
+        self.tolerance = config.grasp_tolerance
+        self.closed_gap = closed_gap(config)
+        self.lifted_z = config.scene.table_height + config.scene.box_half_size + config.lift_height
+        self.align_sq = config.align_threshold ** 2
+
+    def __call__(self, rel: np.ndarray, fingers: np.ndarray, box: np.ndarray,
+                 targets: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(distance grip site to box, grasped, aligned), each (...,) from rel = box - grip
+        (..., 3), finger joints (..., 2), box centres (..., 3) and targets (..., 3)."""
+        to_box = np.sqrt((rel * rel).sum(axis=-1))
+        grasped = ((to_box < self.tolerance) & (finger_gap(fingers) <= self.closed_gap)
+                   & (box[..., 2] > self.lifted_z))
+        off = box - targets
+        return to_box, grasped, grasped & ((off * off).sum(axis=-1) < self.align_sq)
+
+
 def check_start_probs(probs) -> np.ndarray | None:
     """Validate start probabilities (reach, grasp, align): 3 non-negative numbers summing to 1.
 
@@ -151,8 +177,7 @@ class TargetRelabeller:
             raise ValueError("hindsight targets follow the 'subtask' goal of the distance term")
         self.config = config
         self.layout = observation_layout(joint_angles)
-        self.closed_gap = closed_gap(config)
-        self.lifted_z = config.scene.table_height + config.scene.box_half_size + config.lift_height
+        self.rule = GraspRule(config)
 
     def achieved(self, next_obs: np.ndarray) -> np.ndarray:
         """Box positions (n, 2, 3) m in observations (n, 2, O)."""
@@ -160,16 +185,12 @@ class TargetRelabeller:
 
     def _terms(self, next_obs: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(distance to the target of held boxes' arms (n, 2) m or 0, success (n,)) for targets."""
-        c, L = self.config, self.layout
+        L = self.layout
         grip, box = next_obs[..., L["grip_pos"]], next_obs[..., L["object_pos"]]
-        rel = next_obs[..., L["object_rel_pos"]]
-        held = ((np.sqrt((rel * rel).sum(-1)) < c.grasp_tolerance)
-                & (finger_gap(next_obs[..., L["fingers"]]) <= self.closed_gap)
-                & (box[..., 2] > self.lifted_z))
+        _, held, aligned = self.rule(next_obs[..., L["object_rel_pos"]], next_obs[..., L["fingers"]],
+                                     box, targets)
         to_target = targets - grip
         distance = np.where(held, -np.sqrt((to_target * to_target).sum(-1)), 0.0)
-        off = box - targets
-        aligned = held & ((off * off).sum(-1) < c.align_threshold ** 2)
         return distance, aligned.all(axis=-1)
 
     def relabel(self, batch: dict, rows: np.ndarray, targets: np.ndarray) -> None:
@@ -181,13 +202,13 @@ class TargetRelabeller:
         batch["obs"][rows, :, where] = targets
         batch["next_obs"][rows, :, where] = targets
         distance = new_distance - old_distance                         # (k, 2)
-        bonus = c.coordinate_bonus * (new_success.astype(float) - old_success)[:, None]
         rew = batch["rew"]
         if rew.ndim == 3:                 # heads (distance + guide, goal, coordinate)
             rew[rows, :, 0] += distance
             rew[rows, :, 2] = c.coordinate_bonus * new_success[:, None]
         else:
-            rew[rows] += distance + bonus
+            rew[rows] += distance + c.coordinate_bonus * (new_success.astype(float)
+                                                          - old_success)[:, None]
         batch["done"][rows] = new_success
 
 
@@ -343,9 +364,7 @@ class BaxterBatch:
         self._c0 = np.asarray(config.guide_c0, dtype=float)
         scene = config.scene
         self.box_rest_z = scene.table_height + scene.box_half_size
-        self._closed_gap = closed_gap(config)
-        self._lifted_z = self.box_rest_z + config.lift_height
-        self._align_sq = config.align_threshold ** 2
+        self._rule = GraspRule(config)
         self._goal_is_subtask = config.goal == "subtask"
         self._success_key = {"reach": "reached", "grasp": "grasped", "align": "aligned"}[config.success_at]
         self._observe_joints = config.observes_joint_angles
@@ -446,7 +465,7 @@ class BaxterBatch:
         for arm in np.flatnonzero(starts):
             if starts[arm] == 2:
                 p = box[arm] + rng.uniform() * (self.target_pos[i, arm] - box[arm])
-                p[2] = max(p[2], self.box_rest_z + c.lift_height + 0.01)
+                p[2] = max(p[2], self._rule.lifted_z + 0.01)
                 box[arm] = p
             grip[arm] = box[arm]
         solve_grip_ik(m, d, ix, grip)
@@ -582,12 +601,8 @@ class BaxterBatch:
         c = self.config
         box = qpos[..., 9:12]
         rel = box - grip
-        to_box = np.sqrt((rel * rel).sum(axis=-1))
-        gap = finger_gap(qpos[..., 7:9])
-        grasped = (to_box < c.grasp_tolerance) & (gap <= self._closed_gap) & (box[..., 2] > self._lifted_z)
+        to_box, grasped, aligned = self._rule(rel, qpos[..., 7:9], box, targets)
         reached = grasped | (to_box < c.reach_threshold)
-        off = box - targets
-        aligned = grasped & ((off * off).sum(axis=-1) < self._align_sq)
         subtask = reached.astype(np.int64) + grasped
         state = {"grip": grip, "qpos": qpos, "rel": rel, "targets": targets, "reached": reached,
                  "grasped": grasped, "aligned": aligned, "subtask": subtask}

@@ -98,6 +98,13 @@ class TrainConfig:
         if self.checkpoint_minutes <= 0:
             raise ValueError(f"checkpoint_minutes must be > 0, got {self.checkpoint_minutes}")
 
+    def baxter_only_options(self) -> list[str]:
+        """The options set in this config that exist for the Baxter task only (a custom
+        PettingZoo environment has no scripted expert, start states, targets or reward terms)."""
+        used = {"start_probs": self.start_probs != (1.0, 0.0, 0.0), "her_share": self.her_share > 0,
+                "reward_heads": self.reward_heads, "demo_episodes": self.demo_episodes > 0}
+        return [name for name, on in used.items() if on]
+
     def task_config(self):
         """The resolved ``TaskConfig`` of this run."""
         from dualarm.envs.config import TaskConfig

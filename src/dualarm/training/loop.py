@@ -90,36 +90,33 @@ class Trainer:
         self.paths = paths
         self.progress = progress
         torch.set_num_threads(config.torch_threads)
+        baxter_only = config.baxter_only_options()
+        if make_env is not None and baxter_only:
+            raise InputError(f"{', '.join(baxter_only)}: defined for the Baxter task only "
+                             "(its expert, start states, targets and named reward terms), "
+                             "not a custom environment")
         constraints = None if make_env is not None else config.load_constraints()
         self.vec = make_vector_env(config, config.num_envs, make_env, constraints, training=True)
         self.eval_vec = (make_vector_env(config, min(config.num_envs, config.eval_episodes),
                                          make_env, constraints)
                          if config.eval_every and config.eval_episodes else None)
         v = self.vec
+        task = config.task_config()
         self.head_terms = None       # reward heads: the env's terms summed into each head
         head_scales = None
         if config.reward_heads:
-            if make_env is not None:
-                raise InputError("reward_heads: the reward is split by the Baxter task's named "
-                                 "terms; a custom environment has none")
-            task = config.task_config()
             if min(task.grasp_bonus, task.coordinate_bonus) <= 0:
                 raise InputError("reward_heads: the bonus heads are scaled by rg2 and rc, which "
                                  "must be positive")
             self.head_terms = HEAD_TERMS
             head_scales = (config.algo.reward_scale, 1.0 / max(task.grasp_bonus, task.reach_bonus),
                            1.0 / task.coordinate_bonus)
-        if make_env is not None and config.start_probs != (1.0, 0.0, 0.0):
-            raise InputError("start_probs: later starts are defined for the Baxter task only")
         self.agent = DADDPG(config.algo, v.obs_sizes, v.act_sizes, seed=config.seed,
                             head_scales=head_scales)
         self.buffer = ReplayBuffer(config.algo.buffer_size, 2, v.obs_size, v.act_size,
                                    self.agent.num_heads)
         self.sampler = self.buffer
         if config.her_share > 0:
-            if make_env is not None:
-                raise InputError("her_share: hindsight targets are defined for the Baxter task only")
-            task = config.task_config()
             relabeller = TargetRelabeller(task, task.observes_joint_angles)
             self.sampler = HindsightSampler(self.buffer, relabeller.achieved, relabeller.relabel,
                                             config.her_share)
@@ -127,9 +124,6 @@ class Trainer:
         # deterministic); the normaliser's statistics then come from the checkpoint.
         self.demos = None
         if config.demo_episodes:
-            if make_env is not None:
-                raise InputError("demo_episodes: the scripted expert demonstrates the Baxter "
-                                 "task only, not a custom environment")
             self.demos = record_expert_demonstrations(config, v, self.reward_of,
                                                       self.agent.num_heads)
             self.agent.normalizer.update(self.demos.data["obs"][:len(self.demos)])
