@@ -2,7 +2,9 @@
 parallel on local processes or Ray tasks; resume, conflicts and failed runs."""
 
 import csv
+import os
 import shutil
+
 
 import pytest
 import yaml
@@ -72,7 +74,13 @@ def test_local_backend_trains_every_condition_and_seed(local, tmp_path):
         run = out / "runs" / name
         config = yaml.safe_load((run / "config.yaml").read_text())
         assert f"{config['condition']}-seed{config['seed']}" == name
-        assert config["episodes"] == EPISODES and config["constraints"] is None   # shipped files
+        assert config["episodes"] == EPISODES
+        if config["condition"] == "none":
+            assert config["constraints"] is None
+        else:       # the run keeps its own copy of the shipped file
+            assert config["constraints"] == "constraints.yaml"
+            assert ((run / "constraints.yaml").read_bytes()
+                    == default_constraints_path(config["condition"]).read_bytes())
         assert episodes_of(run) == list(range(1, EPISODES + 1))
         assert read_done(run)["episodes"] == EPISODES and (run / "curves.png").exists()
         assert run_state(run, EPISODES) == "finished" and run_state(run, EPISODES + 1) == "partial"
@@ -159,11 +167,11 @@ def test_rerun_skips_finished_resumes_partial_and_reports_failed(tmp_path, base_
 
 
 def test_a_second_comparison_on_the_same_directory_is_refused(tmp_path, capsys):
-    from dualarm.experiments.compare import locked
+    from dualarm.locks import locked
 
-    with locked(tmp_path / "cmp"):
+    with locked(tmp_path / "cmp", "dualarm compare"):
         assert main(["compare", "--conditions", "none", "--seeds", "0", "-o", str(tmp_path / "cmp")]) == 2
-    assert "in use by another dualarm compare" in capsys.readouterr().err
+    assert f"in use by dualarm compare, pid {os.getpid()}" in capsys.readouterr().err
 
 
 @pytest.fixture(scope="module")
@@ -200,7 +208,9 @@ def test_ray_without_a_shared_filesystem_ships_run_directories(ray_instance, loc
     assert [o.ok for o in result.outcomes] == [True, True]
     assert rows(none_run / "metrics.csv") == rows(local[0] / "runs" / "none-seed0" / "metrics.csv")
     multi = yaml.safe_load((out / "runs" / "multi-seed0" / "config.yaml").read_text())
-    assert multi["constraints"] == str(out / "constraints" / "multi.yaml")
+    assert multi["constraints"] == "constraints.yaml"      # the run's copy of the comparison's
+    assert ((out / "runs" / "multi-seed0" / "constraints.yaml").read_bytes()
+            == (out / "constraints" / "multi.yaml").read_bytes())
     assert rows(out / "runs" / "multi-seed0" / "metrics.csv") == rows(
         local[0] / "runs" / "multi-seed0" / "metrics.csv")     # the same file's content
     assert not list((out / "runs").glob(".*"))    # no leftovers of the swaps

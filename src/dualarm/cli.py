@@ -10,6 +10,13 @@ from pathlib import Path
 import numpy as np
 
 from dualarm import __version__
+from dualarm.cli_types import (
+    InputPath,
+    OutputDir,
+    OutputFile,
+    check_paths,
+    option_names,
+)
 from dualarm.errors import DualarmError
 
 EXAMPLE_RECORDING = Path(__file__).parent / "data" / "example_recording.csv.gz"
@@ -170,7 +177,7 @@ def build_parser() -> argparse.ArgumentParser:
     quick = sub.add_parser("quickstart", help="map the built-in example recording (tables and figures)",
                            description="Map the built-in example IMU recording to human and Baxter joint "
                                        "angles, and write the tables and figures.")
-    quick.add_argument("-o", "--output", type=Path, default=Path("out/quickstart"),
+    quick.add_argument("-o", "--output", type=OutputDir, default=Path("out/quickstart"),
                        help="output directory (default: out/quickstart)")
     quick.set_defaults(func=cmd_quickstart)
 
@@ -179,7 +186,7 @@ def build_parser() -> argparse.ArgumentParser:
     msub = mocap.add_subparsers(dest="mocap_command", required=True, metavar="COMMAND")
 
     def mapping_options(p: argparse.ArgumentParser) -> None:
-        p.add_argument("input", type=Path, metavar="INPUT",
+        p.add_argument("input", type=InputPath, metavar="INPUT",
                        help="recording: .csv (or .csv.gz), OpenSim .sto or MATLAB .mat")
         p.add_argument("--calib-seconds", type=_seconds(allow_zero=False), default=1.0, metavar="S",
                        help="length of the zero-pose calibration window, s (default: 1.0)")
@@ -196,10 +203,10 @@ def build_parser() -> argparse.ArgumentParser:
                              description="Write time,left_q1..left_q7,right_q1..right_q7 (rad), one row "
                                          "per input sample.")
     mapping_options(joints)
-    joints.add_argument("-o", "--output", type=Path, required=True, metavar="OUTPUT.csv")
+    joints.add_argument("-o", "--output", type=OutputFile, required=True, metavar="OUTPUT.csv")
     joints.add_argument("--robot", action="store_true",
                         help="write the retargeted Baxter joint vector (clipped to its limits)")
-    joints.add_argument("--residuals", type=Path, metavar="FILE.csv",
+    joints.add_argument("--residuals", type=OutputFile, metavar="FILE.csv",
                         help="also write the elbow/wrist residual angles (rad)")
     joints.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     joints.set_defaults(func=cmd_mocap_joints)
@@ -208,14 +215,14 @@ def build_parser() -> argparse.ArgumentParser:
                            description="Map a recording and draw its joint angles (degrees), residuals, "
                                        "and the human and Baxter models side by side.")
     mapping_options(plot)
-    plot.add_argument("-o", "--output", type=Path, required=True, metavar="DIR")
+    plot.add_argument("-o", "--output", type=OutputDir, required=True, metavar="DIR")
     plot.add_argument("--instants", type=_comma_floats, metavar="T1,T2,...",
                       help="seconds from the start at which to draw stick figures")
     plot.set_defaults(func=cmd_mocap_plot)
 
     example = msub.add_parser("example", help="write the built-in example recording",
                               description="Regenerate the built-in example recording (deterministic).")
-    example.add_argument("-o", "--output", type=Path, required=True, metavar="FILE.csv")
+    example.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.csv")
     example.set_defaults(func=cmd_mocap_example)
 
     from dualarm.cli_env import add_env_commands
@@ -235,8 +242,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point: parse ``argv``, run the subcommand, turn expected errors into one line."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     try:
+        check_paths(args, option_names(parser))
         with warnings.catch_warnings():
             warnings.simplefilter("default")
             warnings.showwarning = lambda message, *_a, **_k: print(f"dualarm: warning: {message}",

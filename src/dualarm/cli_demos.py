@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dualarm.cli_types import InputPath, OutputDir, OutputFile
 from dualarm.cli_types import non_negative as _non_negative
 from dualarm.cli_types import positive_int as _positive_int
 from dualarm.errors import InputError
@@ -68,8 +69,12 @@ def cmd_demos_generate(args: argparse.Namespace) -> int:
 
 def cmd_demos_segment(args: argparse.Namespace) -> int:
     """Segment demonstrations automatically; compare with labels when there are any."""
-    from dualarm.constraint_extraction import (load_demo_dir, read_labels, segmentation_agreement,
-                                               write_labels)
+    from dualarm.constraint_extraction import (
+        load_demo_dir,
+        read_labels,
+        segmentation_agreement,
+        write_labels,
+    )
 
     if args.output:
         _check_output(args.output, (".csv",))
@@ -106,7 +111,11 @@ def cmd_demos_segment(args: argparse.Namespace) -> int:
 
 def cmd_constraints_extract(args: argparse.Namespace) -> int:
     """Eq. 12 over a folder of demonstrations -> constraints YAML."""
-    from dualarm.constraint_extraction import extract_constraints, extraction_provenance, load_demo_dir
+    from dualarm.constraint_extraction import (
+        extract_constraints,
+        extraction_provenance,
+        load_demo_dir,
+    )
     from dualarm.constraints import parse_segments
 
     _check_output(args.output, (".yaml", ".yml"))
@@ -164,8 +173,12 @@ def cmd_constraints_plot(args: argparse.Namespace) -> int:
 
 def cmd_constraints_analyze(args: argparse.Namespace) -> int:
     """Volume fractions and the expert's share of steps inside, for one or more constraint files."""
-    from dualarm.constraint_extraction import (arm_volume_fractions, expert_inside_fractions, expert_rollouts,
-                                               width_fractions)
+    from dualarm.constraint_extraction import (
+        arm_volume_fractions,
+        expert_inside_fractions,
+        expert_rollouts,
+        width_fractions,
+    )
     from dualarm.constraints import JOINT_COLUMNS, ConstraintSet
 
     if args.output is not None and args.output.exists() and not args.output.is_dir():
@@ -213,9 +226,9 @@ def add_demo_commands(sub) -> None:
     def demo_dir_argument(p: argparse.ArgumentParser, flag: bool = False) -> None:
         help_ = "folder of IMU recordings (.csv, .csv.gz, .sto, .mat); default: the shipped set of 10"
         if flag:
-            p.add_argument("--demos", dest="demo_dir", type=Path, metavar="DIR", help=help_)
+            p.add_argument("--demos", dest="demo_dir", type=InputPath, metavar="DIR", help=help_)
         else:
-            p.add_argument("demo_dir", type=Path, nargs="?", metavar="DEMO_DIR", help=help_)
+            p.add_argument("demo_dir", type=InputPath, nargs="?", metavar="DEMO_DIR", help=help_)
 
     def mapping_options(p: argparse.ArgumentParser) -> None:
         p.add_argument("--calib-seconds", type=_non_negative, default=1.0, metavar="S",
@@ -229,7 +242,7 @@ def add_demo_commands(sub) -> None:
                             f"(default: {DEFAULT_LOWPASS_HZ:g})")
 
     def labels_option(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--labels", type=Path, metavar="FILE.csv",
+        p.add_argument("--labels", type=InputPath, metavar="FILE.csv",
                        help="labels file (demo,arm,subtask,start_s,end_s); default: DEMO_DIR/labels.csv")
 
     demos = sub.add_parser("demos", help="demonstration sets: generate, segment",
@@ -241,7 +254,7 @@ def add_demo_commands(sub) -> None:
                                       "recordings (random mountings, noise, a zero-pose window) with "
                                       "sub-task labels. The same --count and --seed give the same bytes; "
                                       "--count 10 --seed 0 is the shipped set.")
-    gen.add_argument("-o", "--output", type=Path, required=True, metavar="DIR")
+    gen.add_argument("-o", "--output", type=OutputDir, required=True, metavar="DIR")
     gen.add_argument("--count", type=_positive_int, default=10, help="number of demonstrations (default: 10)")
     gen.add_argument("--seed", type=int, default=0, help="seed (default: 0)")
     gen.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
@@ -256,7 +269,7 @@ def add_demo_commands(sub) -> None:
     labels_option(seg)
     mapping_options(seg)
     seg.add_argument("--no-grip", action="store_true", help="ignore gripper-event columns")
-    seg.add_argument("-o", "--output", type=Path, metavar="FILE.csv", help="write the automatic labels")
+    seg.add_argument("-o", "--output", type=OutputFile, metavar="FILE.csv", help="write the automatic labels")
     seg.set_defaults(func=cmd_demos_segment)
 
     cons = sub.add_parser("constraints", help="joint-angle constraints: extract, plot, analyze",
@@ -280,28 +293,28 @@ def add_demo_commands(sub) -> None:
                      help="per-demo P-th and (100-P)-th percentiles instead of min and max (default: 0)")
     ext.add_argument("--name", default=None, help="name of the set (default: single or multi)")
     mapping_options(ext)
-    ext.add_argument("-o", "--output", type=Path, required=True, metavar="FILE.yaml")
+    ext.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.yaml")
     ext.add_argument("-q", "--quiet", action="store_true")
     ext.set_defaults(func=cmd_constraints_extract)
 
     plot = csub.add_parser("plot", help="demonstrations' joint curves with the constraint bands (PNG)",
                            description="Every demonstration's joint angles per arm against task phase, "
                                        "with each segment's band.")
-    plot.add_argument("constraints", type=Path, metavar="FILE.yaml")
+    plot.add_argument("constraints", type=InputPath, metavar="FILE.yaml")
     demo_dir_argument(plot, flag=True)
     labels_option(plot)
     mapping_options(plot)
-    plot.add_argument("-o", "--output", type=Path, required=True, metavar="FIG.png")
+    plot.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FIG.png")
     plot.set_defaults(func=cmd_constraints_plot)
 
     ana = csub.add_parser("analyze", help="joint-space share and the expert's steps inside",
                           description="For each constraints file: the share of Baxter's joint range "
                                       "(per joint and as a volume) each segment leaves, and the share of the "
                                       "scripted expert's steps inside the range of its arm's segment.")
-    ana.add_argument("constraints", type=Path, nargs="+", metavar="FILE.yaml")
+    ana.add_argument("constraints", type=InputPath, nargs="+", metavar="FILE.yaml")
     ana.add_argument("--episodes", type=_positive_int, default=100, help="expert episodes (default: 100)")
     ana.add_argument("--seed", type=int, default=1000, help="seed of the first episode (default: 1000)")
-    ana.add_argument("-o", "--output", type=Path, metavar="DIR",
+    ana.add_argument("-o", "--output", type=OutputDir, metavar="DIR",
                      help="write constraints_volume_fractions.png and constraints_expert_inside.png here")
     ana.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     ana.set_defaults(func=cmd_constraints_analyze)

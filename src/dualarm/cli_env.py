@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from dualarm.cli_types import InputPath, OutputFile
+
 
 def _environment(args: argparse.Namespace):
     """The task core from the command's options (frame size too, for rendering commands)."""
@@ -107,7 +109,7 @@ def add_env_commands(sub) -> None:
     def task_options(p: argparse.ArgumentParser) -> None:
         p.add_argument("--condition", choices=("none", "single", "multi"), default="none",
                        help="joint-angle guidance (needs --constraints unless none; default: none)")
-        p.add_argument("--constraints", type=Path, metavar="FILE.yaml",
+        p.add_argument("--constraints", type=InputPath, metavar="FILE.yaml",
                        help="constraints file for the single/multi conditions")
         p.add_argument("--control", choices=("cartesian", "joint"), default="cartesian",
                        help="action space (default: cartesian)")
@@ -125,7 +127,7 @@ def add_env_commands(sub) -> None:
     video.add_argument("--fps", type=float, default=12.0,
                        help="frames per second of the video; one frame per step, so the default "
                             "plays at 0.24x real time (a step is 20 ms)")
-    video.add_argument("-o", "--output", type=Path, required=True, metavar="FILE.mp4")
+    video.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.mp4")
     video.set_defaults(func=cmd_env_video)
 
     expert = esub.add_parser("expert", help="success rate of the scripted expert",
@@ -140,5 +142,5 @@ def add_env_commands(sub) -> None:
     task_options(strip)
     rendering_options(strip)
     strip.add_argument("--frames", type=int, default=5)
-    strip.add_argument("-o", "--output", type=Path, required=True, metavar="FILE.png")
+    strip.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.png")
     strip.set_defaults(func=cmd_env_strip)

@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
-from dualarm.cli_types import positive
-from dualarm.cli_types import positive_int
+from dualarm.cli_types import InputPath, OutputDir, positive, positive_int
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
@@ -16,7 +14,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
     Exit status: 0 when every run finished, 1 when a run failed, 130 when interrupted.
     """
     from dualarm.experiments.backends import make_backend
-    from dualarm.experiments.compare import CompareRequest, compare, parse_conditions, parse_seeds
+    from dualarm.experiments.compare import (
+        CompareRequest,
+        compare,
+        parse_conditions,
+        parse_seeds,
+    )
     from dualarm.training import TrainConfig
 
     request = CompareRequest(
@@ -57,7 +60,7 @@ def grid_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ray-address", metavar="ADDR",
                    help="Ray cluster to submit to, e.g. auto or ray://HOST:10001 (default: start "
                         "a local Ray instance)")
-    p.add_argument("--config", type=Path, metavar="BASE.yaml",
+    p.add_argument("--config", type=InputPath, metavar="BASE.yaml",
                    help="TrainConfig fields for every run (as `dualarm train --config`); "
                         "condition, seed and constraints are set per run")
 
@@ -86,11 +89,11 @@ def add_compare_commands(sub) -> None:
     p.add_argument("--episodes", type=positive_int, metavar="N",
                    help="training episodes per run (default: the --config's, 3000, or the "
                         "comparison's; a larger value extends the runs)")
-    p.add_argument("--constraints-dir", type=Path, metavar="DIR",
+    p.add_argument("--constraints-dir", type=InputPath, metavar="DIR",
                    help="folder with single.yaml and multi.yaml (`dualarm constraints extract` "
                         "output; default: the shipped constraint files)")
     p.add_argument("--poll", type=positive, default=2.0, metavar="S",
                    help=argparse.SUPPRESS)
-    p.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
+    p.add_argument("-o", "--output", type=OutputDir, required=True, metavar="DIR",
                    help="comparison directory")
     p.set_defaults(func=cmd_compare)

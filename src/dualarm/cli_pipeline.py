@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from dualarm.cli_experiments import grid_argv, grid_options
-from dualarm.cli_types import positive_int
+from dualarm.cli_types import InputPath, OutputDir, positive_int
 
 #: (condition, segment spec) of the constraint files the comparison needs (paper: C1, C2&C3).
 CONSTRAINT_SETS = (("single", "reach+grasp+align"), ("multi", "reach+grasp,align"))
@@ -61,11 +61,11 @@ def add_pipeline_commands(sub) -> None:
                     "condition x seed (`dualarm compare`), and write the report (`dualarm "
                     "report`). Run it again to resume. The defaults are a short first run; "
                     "--episodes 10000 reproduces the paper's budget.")
-    p.add_argument("-o", "--output", type=Path, default=Path("out/pipeline"), metavar="DIR",
+    p.add_argument("-o", "--output", type=OutputDir, default=Path("out/pipeline"), metavar="DIR",
                    help="output directory (default: out/pipeline)")
     p.add_argument("--episodes", type=positive_int, default=200, metavar="N",
                    help="training episodes per run (default: 200, about 9 minutes on 2 cores)")
     grid_options(p)
-    p.add_argument("--demo-dir", type=Path, metavar="DIR",
+    p.add_argument("--demo-dir", type=InputPath, metavar="DIR",
                    help="demonstrations with labels.csv (default: the shipped ones)")
     p.set_defaults(func=cmd_pipeline)

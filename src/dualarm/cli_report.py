@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
-from dualarm.cli_types import positive_int, rate
+from dualarm.cli_types import InputPath, OutputDir, positive_int, rate
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -33,8 +32,8 @@ def add_report_commands(sub) -> None:
                     "(Fig. 7) and time-to-convergence (Fig. 8) figures, table.md, table.csv "
                     "and index.html, with mean and 95%% confidence interval over seeds and the "
                     "paper's values beside them.")
-    report.add_argument("dir", type=Path, metavar="DIR", help="comparison directory")
-    report.add_argument("-o", "--output", type=Path, metavar="OUT",
+    report.add_argument("dir", type=InputPath, metavar="DIR", help="comparison directory")
+    report.add_argument("-o", "--output", type=OutputDir, metavar="OUT",
                         help="output directory (default: DIR/report)")
     report.add_argument("--window", type=positive_int, default=100, metavar="N",
                         help="moving-average window, episodes (default: 100)")

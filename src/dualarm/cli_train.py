@@ -8,10 +8,13 @@ from pathlib import Path
 
 import numpy as np
 
+from dualarm.cli_types import InputPath, OutputDir, OutputFile, positive_int
+from dualarm.errors import InputError
+
 
 def cmd_train(args: argparse.Namespace) -> int:
     """Start a run (or resume one with --resume) and report where it ended."""
-    from dualarm.training import Trainer, TrainConfig
+    from dualarm.training import TrainConfig, Trainer
 
     if args.resume:
         ignored = [name for name in ("condition", "constraints", "seed", "out", "num_envs", "config")
@@ -30,7 +33,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             changes["constraints"] = str(args.constraints)
         config = config.with_(**changes)
         if config.condition == "none" and config.constraints:
-            raise SystemExit("dualarm: error: --constraints needs --condition single or multi")
+            raise InputError("--constraints needs --condition single or multi")
         out = args.out or Path("runs") / f"{config.condition}-seed{config.seed}"
         trainer = Trainer.start(config, out)
     try:
@@ -39,6 +42,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         print(f"\nstopped; continue with: dualarm train --resume {trainer.paths.root}",
               file=sys.stderr)
         return 130
+    finally:
+        trainer.close()
     from dualarm.training.plots import plot_run
 
     curves = plot_run(result.out, trainer.paths.curves)
@@ -141,22 +146,22 @@ def add_train_commands(sub) -> None:
                                        "events and checkpoints to the run directory.")
     train.add_argument("--condition", choices=("none", "single", "multi"),
                        help="joint-angle guidance (default: multi, with the shipped constraints)")
-    train.add_argument("--constraints", type=Path, metavar="FILE.yaml",
+    train.add_argument("--constraints", type=InputPath, metavar="FILE.yaml",
                        help="constraints file for single/multi (default: the shipped one)")
-    train.add_argument("--episodes", type=int, help="training episodes in all (default: 3000)")
+    train.add_argument("--episodes", type=positive_int, help="training episodes in all (default: 3000)")
     train.add_argument("--seed", type=int, help="seed of the run (default: 0)")
-    train.add_argument("--num-envs", type=int, help="environment copies stepped together (default: 16)")
-    train.add_argument("--out", type=Path, metavar="DIR",
+    train.add_argument("--num-envs", type=positive_int, help="environment copies stepped together (default: 16)")
+    train.add_argument("--out", type=OutputDir, metavar="DIR",
                        help="run directory (default: runs/CONDITION-seedSEED)")
-    train.add_argument("--config", type=Path, metavar="FILE.yaml",
+    train.add_argument("--config", type=InputPath, metavar="FILE.yaml",
                        help="training settings (any fields of a run's config.yaml; the "
                             "options above override them)")
-    train.add_argument("--resume", type=Path, metavar="DIR",
+    train.add_argument("--resume", type=InputPath, metavar="DIR",
                        help="continue the run in DIR from its last checkpoint")
     train.set_defaults(func=cmd_train)
 
     def run_options(p: argparse.ArgumentParser) -> None:
-        p.add_argument("run", type=Path, metavar="DIR", help="a run directory of dualarm train")
+        p.add_argument("run", type=InputPath, metavar="DIR", help="a run directory of dualarm train")
         p.add_argument("--checkpoint", choices=("best", "latest"), default="best",
                        help="the best evaluated policy or the last checkpoint (default: best)")
 
@@ -169,7 +174,7 @@ def add_train_commands(sub) -> None:
     play = sub.add_parser("play", help="render the learned policy to MP4 or GIF",
                           description="Render one episode of a run's policy.")
     run_options(play)
-    play.add_argument("-o", "--output", type=Path, required=True, metavar="FILE.mp4")
+    play.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.mp4")
     play.add_argument("--seed", type=int, default=0)
     frame_options(play)
     play.add_argument("--fps", type=float, default=12.0)
@@ -179,6 +184,6 @@ def add_train_commands(sub) -> None:
                             description="Run one episode of a run's policy and write time, the 14 "
                                         "joint angles and the grip of both arms.")
     run_options(export)
-    export.add_argument("-o", "--output", type=Path, required=True, metavar="FILE.csv")
+    export.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.csv")
     export.add_argument("--seed", type=int, default=0)
     export.set_defaults(func=cmd_export)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 
 def _number(text: str, kind=float):
@@ -47,3 +48,96 @@ def rate(text: str) -> float:
     if not 0 < value <= 1:
         raise argparse.ArgumentTypeError(f"must be a success rate in (0, 1], got {text!r}")
     return value
+
+
+# ------------------------------------------------------------------ paths
+# Path arguments say what they are by their type, so that one check in `main` (``check_paths``)
+# covers every command: an output is never one of the command's inputs, never another of its
+# outputs, never one of a run directory's own files, and a file where a folder is wanted (or the
+# reverse) is named before anything runs.
+_ConcretePath = type(Path())
+
+
+class InputPath(_ConcretePath):
+    """A file or folder the command reads."""
+
+
+class OutputFile(_ConcretePath):
+    """A file the command writes (replacing it if it exists)."""
+
+
+class OutputDir(_ConcretePath):
+    """A folder the command writes into (created if missing)."""
+
+
+#: Names a run directory keeps for itself (dualarm.training.run_dir.RunPaths), and folders of
+#: its own whose every file is the run's.
+RUN_FILES = ("config.yaml", "metrics.csv", "eval.csv", "curves.png", "constraints.yaml", ".lock",
+             "done.yaml")
+RUN_FOLDERS = ("checkpoints", "events")
+
+
+def _run_directory_of(path: Path) -> Path | None:
+    """The run directory that owns ``path`` (a resolved path), or None."""
+    parent = path.parent
+    if path.name in RUN_FILES and (parent / "config.yaml").is_file():
+        return parent
+    for folder in path.parents:
+        if folder.name in RUN_FOLDERS and (folder.parent / "config.yaml").is_file():
+            return folder.parent
+    return None
+
+
+def option_names(parser: argparse.ArgumentParser) -> dict[str, str]:
+    """dest -> how a user spells it ("--output", "INPUT"), over a parser and its subcommands."""
+    names: dict[str, str] = {}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                for dest, name in option_names(sub).items():
+                    names.setdefault(dest, name)
+        elif action.dest not in names:
+            names[action.dest] = (action.option_strings[-1] if action.option_strings
+                                  else str(action.metavar or action.dest))
+    return names
+
+
+def check_paths(args: argparse.Namespace, names: dict[str, str] | None = None) -> None:
+    """Refuse, naming the option, an output path that would destroy what the command reads
+    or what a run directory holds, before the command starts.
+
+    Raises:
+        InputError: an output resolves to an input, to another output, to a file of a run
+            directory, or to a folder where a file is wanted (or the reverse).
+    """
+    from dualarm.errors import InputError
+
+    def flag(dest: str) -> str:
+        return (names or {}).get(dest, dest)
+
+    found: list[tuple[str, Path]] = []
+    for name, value in vars(args).items():
+        for item in (value if isinstance(value, list) else [value]):
+            if isinstance(item, (InputPath, OutputFile, OutputDir)):
+                found.append((name, item))
+    inputs = [(n, p, p.resolve()) for n, p in found if isinstance(p, InputPath)]
+    outputs = [(n, p, p.resolve()) for n, p in found if not isinstance(p, InputPath)]
+    for k, (name, path, real) in enumerate(outputs):
+        for other, source, source_real in inputs:
+            if real == source_real:
+                raise InputError(f"{path}: {flag(name)} is also the input {flag(other)} ({source}); "
+                                 "write the output elsewhere (nothing was changed)")
+        for other, second, second_real in outputs[k + 1:]:
+            if real == second_real:
+                raise InputError(f"{path}: {flag(name)} and {flag(other)} name the same file "
+                                 "(nothing was written)")
+        if isinstance(path, OutputFile):
+            if real.is_dir():
+                raise InputError(f"{path}: {flag(name)} is a folder; it names a file to write")
+            owner = _run_directory_of(real)
+            if owner is not None:
+                raise InputError(f"{path}: {flag(name)} is a file of the run directory {owner}; "
+                                 "write the output elsewhere (nothing was changed)")
+        elif real.exists() and not real.is_dir():
+            raise InputError(f"{path}: {flag(name)} is an existing file; it names a folder to "
+                             "write into")

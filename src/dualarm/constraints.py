@@ -16,6 +16,7 @@ import yaml
 from dualarm.atomic import atomic_open
 from dualarm.errors import InputError
 from dualarm.kinematics import ARMS, BAXTER_JOINT_LIMITS, BAXTER_JOINT_NAMES
+from dualarm.yaml_io import read_yaml
 
 #: Sub-tasks of the dual-arm task, in the order they are done.
 SUBTASKS = ("reach", "grasp", "align")
@@ -550,18 +551,7 @@ class ConstraintSet:
         joints, non-numeric bounds) are ``InputError`` with ``source=path`` and the field named.
         """
         src = str(path)
-        try:
-            text = Path(path).read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as e:
-            reason = e.strerror if isinstance(e, OSError) and e.strerror else str(e)
-            raise InputError(f"cannot read constraint file: {reason}", source=src) from None
-        try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as e:
-            mark = getattr(e, "problem_mark", None)
-            where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-            problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-            raise InputError(f"YAML syntax error{where}: {problem}", source=src) from None
+        data = read_yaml(path, "constraint file")
         return cls.from_dict(data, source=src)
 
 

@@ -29,6 +29,7 @@ import numpy as np
 
 from dualarm.constraints import ConstraintSet
 from dualarm.envs.config import TaskConfig
+from dualarm.errors import InputError
 from dualarm.envs.scene import GRIP_DOWN_QUAT, REST_POSTURE, compiled_model
 from dualarm.kinematics import ARMS, BAXTER_JOINT_LIMITS, BAXTER_JOINT_NAMES
 
@@ -347,7 +348,7 @@ class BaxterBatch:
         elif constraints is None:
             raise ValueError(f"condition {config.condition!r} needs constraints=ConstraintSet(...)")
         elif config.condition == "single" and len(constraints.segments) != 1:
-            raise ValueError(f"condition 'single' needs a one-segment ConstraintSet, "
+            raise InputError(f"condition 'single' needs a one-segment ConstraintSet, "
                              f"got {len(constraints.segments)} segments")
         self.constraints = constraints
         self.num_envs = num_envs

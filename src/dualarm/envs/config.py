@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields, replace
 
 from dualarm.envs.scene import SceneConfig
+from dualarm.errors import InputError
+from dualarm.typed_fields import check_field_types
 
 CONDITIONS = ("none", "single", "multi")
 GOALS = ("subtask", "final")
@@ -94,26 +96,27 @@ class TaskConfig:
     scene: SceneConfig = field(default_factory=SceneConfig)
 
     def __post_init__(self):
+        check_field_types(self)
         from dualarm.envs.scene import CONTROL_MODES
         if self.control not in CONTROL_MODES:
-            raise ValueError(f"control must be one of {CONTROL_MODES}, got {self.control!r}")
+            raise InputError(f"control must be one of {CONTROL_MODES}, got {self.control!r}")
         if self.condition not in CONDITIONS:
-            raise ValueError(f"condition must be one of {CONDITIONS}, got {self.condition!r}")
+            raise InputError(f"condition must be one of {CONDITIONS}, got {self.condition!r}")
         if self.goal not in GOALS:
-            raise ValueError(f"goal must be one of {GOALS}, got {self.goal!r}")
+            raise InputError(f"goal must be one of {GOALS}, got {self.goal!r}")
         if self.success_at not in SUBTASK_ORDER:
-            raise ValueError(f"success_at must be one of {SUBTASK_ORDER}, got {self.success_at!r}")
+            raise InputError(f"success_at must be one of {SUBTASK_ORDER}, got {self.success_at!r}")
         if self.max_episode_steps < 1 or self.substeps < 1:
-            raise ValueError("max_episode_steps and substeps must be at least 1")
+            raise InputError("max_episode_steps and substeps must be at least 1")
         if self.reach_funnel < 0 or self.reach_funnel_height < 0:
-            raise ValueError("reach_funnel and reach_funnel_height must be non-negative, got "
+            raise InputError("reach_funnel and reach_funnel_height must be non-negative, got "
                              f"{self.reach_funnel} and {self.reach_funnel_height}")
         if len(self.guide_c0) != 3 or min(self.guide_c0) < 0:
-            raise ValueError(f"guide_c0 must be 3 non-negative numbers, got {self.guide_c0}")
+            raise InputError(f"guide_c0 must be 3 non-negative numbers, got {self.guide_c0}")
         for f in fields(self):
             value = getattr(self, f.name)
             if f.name.endswith("_range") and not (len(value) == 2 and value[0] <= value[1]):
-                raise ValueError(f"{f.name} must be (low, high) with low <= high, got {value}")
+                raise InputError(f"{f.name} must be (low, high) with low <= high, got {value}")
 
     @property
     def observes_joint_angles(self) -> bool:

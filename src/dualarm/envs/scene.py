@@ -22,6 +22,7 @@ import numpy as np
 
 from dualarm.errors import DualarmError
 from dualarm.kinematics import ARMS, BAXTER_JOINT_LIMITS, BAXTER_JOINT_NAMES
+from dualarm.typed_fields import check_field_types
 
 #: Height of Baxter's torso origin above the floor (m);.
 TORSO_HEIGHT = 0.93
@@ -83,6 +84,9 @@ class SceneConfig:
     box_friction: float = 1.0
     target_radius: float = 0.03
     timestep: float = 0.002
+
+    def __post_init__(self):
+        check_field_types(self)
 
 
 def robosuite_assets() -> Path:

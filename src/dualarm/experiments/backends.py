@@ -24,6 +24,7 @@ import socket
 import tarfile
 import tempfile
 import threading
+import sys
 import time
 import traceback
 from dataclasses import dataclass, replace
@@ -266,11 +267,29 @@ def _exit_when_orphaned(parent: int, every_s: float = 1.0) -> None:
             os._exit(3)
 
 
+def _die_with_parent() -> None:
+    """Ask Linux to SIGKILL this process the moment its parent ends (prctl PR_SET_PDEATHSIG);
+    elsewhere ``_exit_when_orphaned`` notices within a second."""
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+    import signal
+
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
 def _local_worker(conn) -> None:
     """Body of a local worker process: receive tasks, send back their outcomes, until None."""
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ[var] = "1"
-    threading.Thread(target=_exit_when_orphaned, args=(os.getppid(),), daemon=True).start()
+    parent = os.getppid()
+    _die_with_parent()
+    if os.getppid() != parent:        # the driver died before the request took effect
+        os._exit(3)
+    threading.Thread(target=_exit_when_orphaned, args=(parent,), daemon=True).start()
     try:
         while True:
             try:

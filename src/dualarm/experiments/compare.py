@@ -14,11 +14,8 @@ conditions or seeds add runs. Anything else that differs from the manifest is an
 
 from __future__ import annotations
 
-import contextlib
-import os
 import secrets
 import sys
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,9 +23,17 @@ import yaml
 
 from dualarm.atomic import atomic_open
 from dualarm.errors import InputError
-from dualarm.experiments.backends import MANIFEST, RunOutcome, RunTask, logged_episodes, read_done
+from dualarm.experiments.backends import (
+    MANIFEST,
+    RunOutcome,
+    RunTask,
+    logged_episodes,
+    read_done,
+)
+from dualarm.locks import locked
 from dualarm.training.config import TrainConfig
 from dualarm.training.run_dir import RunPaths
+from dualarm.yaml_io import read_yaml
 
 CONDITIONS = ("none", "single", "multi")
 GUIDED = ("single", "multi")
@@ -36,7 +41,7 @@ DEFAULT_SEEDS = (0, 1, 2)
 MANIFEST_FORMAT = "dualarm-comparison"
 MANIFEST_VERSION = 1
 __all__ = ["CompareRequest", "Comparison", "CompareResult", "RunPlan", "prepare", "load_manifest",
-           "save_manifest", "run_state", "logged_episodes", "run_comparison", "compare", "locked",
+           "save_manifest", "run_state", "logged_episodes", "run_comparison", "compare",
            "task_for", "parse_conditions", "parse_seeds", "differences", "base_dict"]
 
 #: TrainConfig fields set per run (not part of the comparison's base config).
@@ -206,10 +211,7 @@ def load_manifest(root: str | Path) -> Comparison | None:
     path = root / MANIFEST
     if not path.exists():
         return None
-    try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise InputError(f"cannot read the comparison manifest ({exc})", source=str(path)) from None
+    data = read_yaml(path, "the comparison manifest")
     if not isinstance(data, dict) or data.get("format") != MANIFEST_FORMAT:
         raise InputError("not a dualarm comparison manifest", source=str(path))
     if data.get("version") != MANIFEST_VERSION:
@@ -360,10 +362,15 @@ def _check_run_dir(plan: RunPlan) -> None:
     path = RunPaths(plan.path).config
     if not path.exists():
         return
-    mine = plan.config.to_dict()
-    theirs = TrainConfig.load(path).to_dict()
-    mine.pop("episodes"), theirs.pop("episodes")
+    theirs_config = TrainConfig.load(path)
+    mine, theirs = plan.config.to_dict(), theirs_config.to_dict()
+    for d in (mine, theirs):      # a run keeps its own copy of the constraints: compare contents
+        d.pop("episodes"), d.pop("constraints")
     diff = differences(yaml.safe_load(yaml.safe_dump(theirs)), yaml.safe_load(yaml.safe_dump(mine)))
+    if not diff and plan.config.condition != "none":
+        here, there = plan.config.constraints_file(), theirs_config.constraints_file()
+        if not there.exists() or there.read_bytes() != here.read_bytes():
+            diff = [("constraints", str(there), str(here))]
     if diff:
         name, there, here = diff[0]
         raise InputError(f"field '{name}' is {there!r} in this run but {here!r} in the comparison; "
@@ -371,37 +378,6 @@ def _check_run_dir(plan: RunPlan) -> None:
 
 
 # ----------------------------------------------------------------- driver
-@contextlib.contextmanager
-def locked(root: str | Path) -> Iterator[None]:
-    """Hold ``root/.lock`` (an advisory lock) so two comparisons never share a directory.
-
-    Raises:
-        InputError: another process holds it.
-    """
-    root = Path(root)
-    root.mkdir(parents=True, exist_ok=True)
-    try:
-        import fcntl
-    except ImportError:          # no advisory locks on this platform
-        yield
-        return
-    with open(root / ".lock", "a+") as f:
-        try:
-            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            f.seek(0)
-            holder = f.read().strip() or "another process"
-            raise InputError(f"{root} is in use by another dualarm compare ({holder})") from None
-        f.seek(0)
-        f.truncate()
-        f.write(f"pid {os.getpid()}\n")
-        f.flush()
-        try:
-            yield
-        finally:
-            fcntl.flock(f, fcntl.LOCK_UN)
-
-
 def task_for(comparison: Comparison, plan: RunPlan) -> RunTask:
     """The backend task of a run (a partial run resumes with ``plan.config.episodes``)."""
     path = plan.config.constraints
@@ -480,7 +456,7 @@ def run_comparison(comparison: Comparison, backend, poll_s: float = 2.0, progres
 def compare(root: str | Path, request: CompareRequest, backend, poll_s: float = 2.0,
             progress: bool = True, stream=None) -> CompareResult:
     """``prepare`` the comparison in ``root`` and ``run_comparison`` it, holding its lock."""
-    with locked(root):
+    with locked(root, "dualarm compare"):
         comparison = prepare(root, request)
         return run_comparison(comparison, backend, poll_s=poll_s, progress=progress, stream=stream)
 

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields, replace
 
+from dualarm.errors import InputError
+from dualarm.typed_fields import check_field_types
+
 
 @dataclass(frozen=True)
 class DADDPGConfig:
@@ -74,6 +77,7 @@ class DADDPGConfig:
     """Joint environment steps of uniformly random actions before learning starts."""
 
     def __post_init__(self):
+        check_field_types(self)
         checks = {
             "hidden": all(h >= 1 for h in self.hidden) and len(self.hidden) >= 1,
             "actor_lr": self.actor_lr > 0, "critic_lr": self.critic_lr > 0,
@@ -91,7 +95,7 @@ class DADDPGConfig:
         bad = [name for name, ok in checks.items() if not ok]
         if bad:
             name = bad[0]
-            raise ValueError(f"DADDPGConfig.{name} has an invalid value {getattr(self, name)!r}")
+            raise InputError(f"{name}: invalid value {getattr(self, name)!r}")
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -101,14 +105,16 @@ class DADDPGConfig:
     @classmethod
     def from_dict(cls, d: dict, where: str = "config") -> "DADDPGConfig":
         """Build from a plain dict, naming unknown fields (``where`` prefixes the message)."""
+        if not isinstance(d, dict):
+            raise InputError(f"{where}: expected a mapping of DADDPG settings, got {d!r}"[:160])
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - known)
         if unknown:
-            raise ValueError(f"{where}: unknown DADDPG field(s) {unknown}; known: {sorted(known)}")
-        d = dict(d)
-        if "hidden" in d:
-            d["hidden"] = tuple(int(h) for h in d["hidden"])
-        return cls(**d)
+            raise InputError(f"{where}: unknown DADDPG field(s) {unknown}; known: {sorted(known)}")
+        try:
+            return cls(**d)
+        except InputError as exc:
+            raise InputError(f"{where}: {exc}") from None
 
     def with_(self, **changes) -> "DADDPGConfig":
         return replace(self, **changes)

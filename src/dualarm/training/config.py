@@ -9,6 +9,8 @@ import yaml
 
 from dualarm.errors import InputError
 from dualarm.rl.config import DADDPGConfig
+from dualarm.typed_fields import check_field_types
+from dualarm.yaml_io import read_yaml
 
 #: TaskConfig fields a run may override (the rest keep the task's defaults).
 TASK_OVERRIDES = ("control", "goal", "success_at", "max_episode_steps", "joint_angles_in_obs",
@@ -23,6 +25,7 @@ class TrainConfig:
     Attributes:
         condition: "none", "single" or "multi" (paper Section 3.2.2).
         constraints: constraint file for "single"/"multi"; None uses the shipped default.
+            In a config file, a relative path is relative to the file's folder.
         task: TaskConfig fields to override, by name (see ``TASK_OVERRIDES``).
         episodes: training episodes in all (a resumed run may raise it).
         seed: seeds the networks, the noise, the replay sampling and the episodes.
@@ -69,34 +72,39 @@ class TrainConfig:
     algo: DADDPGConfig = field(default_factory=DADDPGConfig)
 
     def __post_init__(self):
+        check_field_types(self)
         from dualarm.envs.config import CONDITIONS
         if self.condition not in CONDITIONS:
-            raise ValueError(f"condition must be one of {CONDITIONS}, got {self.condition!r}")
+            raise InputError(f"condition must be one of {CONDITIONS}, got {self.condition!r}")
         unknown = sorted(set(self.task) - set(TASK_OVERRIDES))
         if unknown:
-            raise ValueError(f"task overrides {unknown} are not supported; allowed: {TASK_OVERRIDES}")
+            raise InputError(f"task overrides {unknown} are not supported; allowed: {TASK_OVERRIDES}")
         for name in ("episodes", "num_envs", "torch_threads"):
             if getattr(self, name) < 1:
-                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+                raise InputError(f"{name} must be at least 1, got {getattr(self, name)}")
         for name in ("eval_every", "eval_episodes", "checkpoint_every", "demo_episodes"):
             if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+                raise InputError(f"{name} must be >= 0, got {getattr(self, name)}")
+        try:
+            task = self.task_config()
+        except InputError as exc:
+            raise InputError(f"task: {exc}") from None
         if self.algo.demo_batch_size > 0 and self.demo_episodes == 0:
-            raise ValueError("algo.demo_batch_size > 0 draws from demonstrations: set demo_episodes")
-        if self.demo_episodes and self.task_config().control != "cartesian":
-            raise ValueError("demo_episodes: the scripted expert demonstrates cartesian control "
+            raise InputError("algo.demo_batch_size > 0 draws from demonstrations: set demo_episodes")
+        if self.demo_episodes and task.control != "cartesian":
+            raise InputError("demo_episodes: the scripted expert demonstrates cartesian control "
                              "only, not task.control 'joint'")
         from dualarm.envs.baxter import check_start_probs
         try:
             check_start_probs(self.start_probs)
         except ValueError as exc:
-            raise ValueError(f"start_probs: {exc}") from None
+            raise InputError(f"start_probs: {exc}") from None
         if not 0 <= self.her_share <= 1:
-            raise ValueError(f"her_share must be in [0, 1], got {self.her_share}")
+            raise InputError(f"her_share must be in [0, 1], got {self.her_share}")
         if self.her_share and self.algo.n_step != 1:
-            raise ValueError("her_share: hindsight relabelling needs one-step transitions (algo.n_step 1)")
+            raise InputError("her_share: hindsight relabelling needs one-step transitions (algo.n_step 1)")
         if self.checkpoint_minutes <= 0:
-            raise ValueError(f"checkpoint_minutes must be > 0, got {self.checkpoint_minutes}")
+            raise InputError(f"checkpoint_minutes must be > 0, got {self.checkpoint_minutes}")
 
     def baxter_only_options(self) -> list[str]:
         """The options set in this config that exist for the Baxter task only (a custom
@@ -109,21 +117,32 @@ class TrainConfig:
         """The resolved ``TaskConfig`` of this run."""
         from dualarm.envs.config import TaskConfig
 
-        task = dict(self.task)
-        if "guide_c0" in task:
-            task["guide_c0"] = tuple(task["guide_c0"])
-        return TaskConfig(condition=self.condition, **task)
+        return TaskConfig(condition=self.condition, **self.task)
+
+    def constraints_file(self) -> Path | None:
+        """The constraints file the guide term reads: ``constraints``, or the shipped file
+        of the condition; None for "none"."""
+        if self.condition == "none":
+            return None
+        from dualarm.constraints import default_constraints_path
+
+        return Path(self.constraints or default_constraints_path(self.condition))
 
     def load_constraints(self):
         """The ``ConstraintSet`` of the guide term (None for "none")."""
-        if self.condition == "none":
+        path = self.constraints_file()
+        if path is None:
             return None
-        from dualarm.constraints import ConstraintSet, default_constraints_path
+        from dualarm.constraints import ConstraintSet
 
-        path = self.constraints or default_constraints_path(self.condition)
-        return ConstraintSet.load(path)
+        constraints = ConstraintSet.load(path)
+        if self.condition == "single" and len(constraints.segments) != 1:
+            raise InputError(f"{path}: condition 'single' needs one segment for the whole task, "
+                             f"this file has {len(constraints.segments)} (use it with --condition multi)")
+        return constraints
 
     def with_(self, **changes) -> "TrainConfig":
+        """A copy with some fields changed (checked as a new config is)."""
         return replace(self, **changes)
 
     def to_dict(self) -> dict:
@@ -142,13 +161,11 @@ class TrainConfig:
         if unknown:
             raise InputError(f"{where}: unknown field(s) {unknown}; known: {sorted(known)}")
         d = dict(d)
+        if "algo" in d:
+            d["algo"] = DADDPGConfig.from_dict(d["algo"] or {}, where=f"{where}: algo")
         try:
-            if "start_probs" in d:
-                d["start_probs"] = tuple(float(p) for p in d["start_probs"])
-            if "algo" in d:
-                d["algo"] = DADDPGConfig.from_dict(d["algo"] or {}, where=f"{where}: algo")
             return cls(**d)
-        except (TypeError, ValueError) as exc:
+        except InputError as exc:
             raise InputError(f"{where}: {exc}") from None
 
     def save(self, path: str | Path) -> None:
@@ -159,10 +176,9 @@ class TrainConfig:
 
     @classmethod
     def load(cls, path: str | Path) -> "TrainConfig":
-        try:
-            d = yaml.safe_load(Path(path).read_text())
-        except OSError as exc:
-            raise InputError(f"{path}: cannot read the run's config ({exc.strerror})") from None
-        except yaml.YAMLError as exc:
-            raise InputError(f"{path}: not valid YAML ({exc})") from None
-        return cls.from_dict(d, where=str(path))
+        d = read_yaml(path, "training config")
+        config = cls.from_dict(d, where=str(path))
+        if config.constraints and not Path(config.constraints).is_absolute():
+            # a path in a file is relative to that file (a run directory keeps its copy)
+            config = config.with_(constraints=str(Path(path).parent / config.constraints))
+        return config

@@ -20,9 +20,12 @@ from typing import Callable
 
 import numpy as np
 import torch
+import yaml
 
-from dualarm.errors import DualarmError, InputError
+from dualarm.atomic import atomic_open
 from dualarm.envs.baxter import HEAD_TERMS, TargetRelabeller
+from dualarm.errors import DualarmError, InputError
+from dualarm.locks import DirectoryLock
 from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
 from dualarm.rl.her import HindsightSampler
 from dualarm.rl.nstep import nstep_episode
@@ -31,9 +34,19 @@ from dualarm.training.config import TrainConfig
 from dualarm.training.demonstrations import record_expert_demonstrations
 from dualarm.training.evaluation import evaluate
 from dualarm.training.rounds import run_round
-from dualarm.training.run_dir import (CheckpointError, CsvLog, RunPaths, load_checkpoint,
-                                      save_checkpoint)
-from dualarm.training.vector import BaxterVector, ParallelEnvVector, VectorEnv, seeds_for
+from dualarm.training.run_dir import (
+    CheckpointError,
+    CsvLog,
+    RunPaths,
+    load_checkpoint,
+    save_checkpoint,
+)
+from dualarm.training.vector import (
+    BaxterVector,
+    ParallelEnvVector,
+    VectorEnv,
+    seeds_for,
+)
 
 EVAL_COLUMNS = ["episode", "env_steps", "wall_time_s", "success_rate", "return_mean",
                 "steps_mean"]
@@ -148,44 +161,103 @@ class Trainer:
         self.timing = {"collect_s": 0.0, "act_s": 0.0, "store_s": 0.0, "update_s": 0.0,
                        "updates": 0, "episodes": 0, "env_steps": 0}
         self.metrics = CsvLog(paths.metrics, columns)
-        self.eval_log = CsvLog(paths.eval, EVAL_COLUMNS)
+        self.eval_log = CsvLog(paths.eval, EVAL_COLUMNS, consecutive=False)
         self._writer = None
+        self._lock: DirectoryLock | None = None
 
     # ------------------------------------------------------------ lifecycle
     @classmethod
     def start(cls, config: TrainConfig, out: str | Path, make_env=None,
               progress: bool = True) -> "Trainer":
-        """A new run in ``out`` (which must not hold a run already). Nothing is written
-        until the environment and the learner are built (bad constraints leave no directory)."""
+        """A new run in ``out`` (which must not hold a run already), holding its lock.
+
+        Nothing is written until the environment and the learner are built (bad
+        constraints leave no directory). A guided run copies its constraints file into
+        the directory, so that it resumes from anywhere, moved or copied.
+
+        Raises:
+            DirectoryBusy: another process holds ``out``.
+            InputError: ``out`` holds a run already.
+        """
         paths = RunPaths(out)
-        if paths.config.exists() or paths.latest.exists():
-            raise InputError(f"{paths.root} already holds a run: resume it with "
-                             f"`dualarm train --resume {paths.root}` or choose another --out")
-        trainer = cls(config, paths, make_env, progress)
-        config.save(paths.config)
-        trainer.metrics.truncate(0)
-        trainer.eval_log.truncate(0)
+        lock = DirectoryLock(paths.root, "dualarm train")
+        try:
+            if paths.config.exists() or paths.latest.exists():
+                raise InputError(f"{paths.root} already holds a run: resume it with "
+                                 f"`dualarm train --resume {paths.root}` or choose another --out")
+            trainer = cls(config, paths, make_env, progress)
+            source = config.constraints_file() if make_env is None else None
+            if source is not None:
+                data = source.read_bytes()
+                with atomic_open(paths.constraints) as f:
+                    f.write(data)
+                trainer.config = config.with_(constraints=str(paths.constraints))
+            trainer._save_config()
+            trainer.metrics.truncate(0)
+            trainer.eval_log.truncate(0)
+        except BaseException:
+            lock.release(remove_if_created=True)
+            raise
+        trainer._lock = lock
         return trainer
 
     @classmethod
     def resume(cls, out: str | Path, episodes: int | None = None, make_env=None,
                progress: bool = True) -> "Trainer":
         """Continue the run in ``out`` from its latest checkpoint (or from the start if it
-        has none), optionally with a new total of ``episodes``."""
+        has none), optionally with a new total of ``episodes``, holding its lock.
+
+        Everything is checked before anything is written (the config, the checkpoint, the
+        logs up to the checkpoint): a resume that fails leaves the directory as it was.
+
+        Raises:
+            DirectoryBusy: another process holds ``out``.
+            InputError: no run there, or ``episodes`` below the episodes done.
+            CheckpointError: the checkpoint or the logs do not continue each other.
+        """
         paths = RunPaths(out)
         if not paths.config.exists():
             raise InputError(f"{paths.root}: no run to resume (no config.yaml there)")
-        config = TrainConfig.load(paths.config)
-        if episodes is not None:
-            config = config.with_(episodes=episodes)
-        trainer = cls(config, paths, make_env, progress)
-        if paths.latest.exists():
-            trainer.load(load_checkpoint(paths.latest))
-        if episodes is not None:       # only once the checkpoint has been accepted
-            config.save(paths.config)
-        trainer.metrics.truncate(trainer.episodes)
-        trainer.eval_log.truncate(trainer.eval_rows)
+        lock = DirectoryLock(paths.root, "dualarm train")
+        try:
+            config = TrainConfig.load(paths.config)
+            if episodes is not None:
+                config = config.with_(episodes=episodes)
+            trainer = cls(config, paths, make_env, progress)
+            if paths.latest.exists():
+                trainer.load(load_checkpoint(paths.latest))
+            if episodes is not None and episodes < trainer.episodes:
+                raise InputError(f"{paths.root}: the run has done {trainer.episodes} episodes, "
+                                 f"more than --episodes {episodes}; nothing was changed")
+            metrics = trainer.metrics.verified(trainer.episodes)
+            evaluations = trainer.eval_log.verified(trainer.eval_rows)
+            if episodes is not None:
+                trainer._save_config()
+            trainer.metrics.rewrite(metrics)
+            trainer.eval_log.rewrite(evaluations)
+        except BaseException:
+            lock.release()
+            raise
+        trainer._lock = lock
         return trainer
+
+    def close(self) -> None:
+        """Release the run directory's lock (also released when the process ends)."""
+        if self._lock is not None:
+            self._lock.release()
+            self._lock = None
+
+    def stored_config(self) -> dict:
+        """The config as the run directory keeps it: its own constraints copy named
+        relative to the directory (``TrainConfig.load`` resolves it there)."""
+        d = self.config.to_dict()
+        if d.get("constraints") and Path(d["constraints"]) == self.paths.constraints:
+            d["constraints"] = self.paths.constraints.name
+        return d
+
+    def _save_config(self) -> None:
+        with atomic_open(self.paths.config) as f:
+            f.write(yaml.safe_dump(self.stored_config(), sort_keys=False).encode())
 
     # ------------------------------------------------------------- the loop
     def run(self) -> TrainResult:
@@ -353,7 +425,7 @@ class Trainer:
         if (result.success_rate, result.mean_return) > self.best:
             self.best = (result.success_rate, result.mean_return)
             save_checkpoint(self.paths.best, {"policy": self.agent.policy_state_dict(),
-                                              "config": c.to_dict(), "eval": self.last_eval})
+                                              "config": self.stored_config(), "eval": self.last_eval})
 
     def _log_round(self, rows: list[dict], losses: list[dict]) -> None:
         w = self._writer
@@ -376,7 +448,7 @@ class Trainer:
     def save(self) -> None:
         """Write ``checkpoints/latest.pt`` atomically (call between rounds only)."""
         save_checkpoint(self.paths.latest, {
-            "config": self.config.with_(episodes=1).to_dict(),
+            "config": {**self.stored_config(), "episodes": 1},
             "learner": self.agent.state_dict(),
             "replay": self.buffer.state_dict(),
             "rng": self.rng.bit_generator.state,
@@ -392,7 +464,7 @@ class Trainer:
     def load(self, payload: dict) -> None:
         """Restore the state saved by ``save`` (the config must match but for ``episodes``)."""
         where = self.paths.latest
-        mine = self.config.with_(episodes=1).to_dict()
+        mine = {**self.stored_config(), "episodes": 1}
         theirs = payload.get("config", {})
         try:   # settings added since the checkpoint was written take their defaults
             theirs = TrainConfig.from_dict(theirs).to_dict()
@@ -421,10 +493,18 @@ class Trainer:
 
 def train(config: TrainConfig, out: str | Path, make_env=None, progress: bool = True) -> TrainResult:
     """Start a run in ``out`` and train it to the end (see ``Trainer``)."""
-    return Trainer.start(config, out, make_env, progress).run()
+    trainer = Trainer.start(config, out, make_env, progress)
+    try:
+        return trainer.run()
+    finally:
+        trainer.close()
 
 
 def resume(out: str | Path, episodes: int | None = None, make_env=None,
            progress: bool = True) -> TrainResult:
     """Continue the run in ``out`` to its (or a new) total of episodes."""
-    return Trainer.resume(out, episodes, make_env, progress).run()
+    trainer = Trainer.resume(out, episodes, make_env, progress)
+    try:
+        return trainer.run()
+    finally:
+        trainer.close()

@@ -52,9 +52,12 @@ def plot_run(run_dir: str | Path, output: str | Path, window: int = 100) -> Path
                   label="evaluation (no noise)")
     ax_r.set(xlabel="episode", ylabel="return, both arms", title="Return")
     ax_s.set(xlabel="episode", ylabel="success rate", ylim=(-0.02, 1.02), title="Success")
+    if m and len(m["episode"]) < 2:     # one episode: give the axes a width to draw in
+        for ax in (ax_r, ax_s):
+            ax.set_xlim(m["episode"][0] - 1, m["episode"][0] + 1)
     ax_r.legend(loc="lower right")
     ax_s.legend(loc="upper left")
-    if m:
+    if m and np.ptp(m["wall_time_s"]) > 0:   # the wall-time axis needs time to pass
         top = ax_s.secondary_xaxis("top", functions=(
             lambda x: np.interp(x, m["episode"], m["wall_time_s"]) / 60,
             lambda t: np.interp(t * 60, m["wall_time_s"], m["episode"])))

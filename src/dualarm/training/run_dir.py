@@ -1,6 +1,9 @@
 """The files of a run directory: CSV logs that survive a kill, and atomic checkpoints.
 
     DIR/config.yaml                 the resolved TrainConfig
+    DIR/constraints.yaml            a copy of the constraints of a guided run (so that the
+                                    directory resumes anywhere, moved or copied)
+    DIR/.lock                       held by the process training the run (one writer)
     DIR/metrics.csv                 one row per training episode
     DIR/eval.csv                    one row per evaluation
     DIR/events/                     TensorBoard event files
@@ -39,6 +42,7 @@ class RunPaths:
         self.metrics = self.root / "metrics.csv"
         self.eval = self.root / "eval.csv"
         self.events = self.root / "events"
+        self.constraints = self.root / "constraints.yaml"
         self.checkpoints = self.root / "checkpoints"
         self.latest = self.checkpoints / "latest.pt"
         self.best = self.checkpoints / "best_policy.pt"
@@ -48,39 +52,76 @@ class RunPaths:
 class CsvLog:
     """An append-only CSV with a fixed header, flushed after every batch of rows.
 
-    ``truncate(n)`` keeps the first n data rows (and drops a half-written last line), so a
-    resumed run continues the log exactly where its checkpoint was taken.
+    A resumed run continues the log exactly where its checkpoint was taken: ``verified(n)``
+    reads the first n data rows and checks them (header, complete rows, the ``episode``
+    column in order), without writing; ``rewrite(rows)`` then keeps just those (and so
+    drops the rows of episodes the checkpoint does not hold, and a half-written last line).
+
+    Args:
+        path: the CSV file.
+        columns: its header.
+        consecutive: the ``episode`` column must read 1, 2, 3, ... (a training log);
+            otherwise it must only increase (an evaluation log).
     """
 
-    def __init__(self, path: Path, columns: list[str]):
+    def __init__(self, path: Path, columns: list[str], consecutive: bool = True):
         self.path = path
         self.columns = columns
+        self.consecutive = consecutive
 
-    def truncate(self, keep: int) -> None:
-        """Keep the header and the first ``keep`` complete rows (rewritten atomically)."""
-        rows = []
-        if self.path.exists():
-            with open(self.path, newline="") as f:
-                reader = csv.reader(f)
-                header = next(reader, None)
-                if header is not None and header != self.columns:
-                    raise CheckpointError(f"{self.path}: its columns {header} differ from this "
-                                          f"run's {self.columns}")
-                for row in reader:
-                    if len(rows) >= keep:
-                        break
-                    if len(row) == len(self.columns):
-                        rows.append(row)
-            if len(rows) < keep:
-                raise CheckpointError(f"{self.path} has {len(rows)} complete rows, but the "
-                                      f"checkpoint was taken after {keep}: the log was edited "
-                                      "or belongs to another run")
+    def verified(self, keep: int) -> list[list[str]]:
+        """The first ``keep`` data rows, checked; raises ``CheckpointError`` naming the file
+        and the row if the log is missing, short, of other columns or out of order."""
+        if keep == 0:
+            return []
+        if not self.path.exists():
+            raise CheckpointError(f"{self.path} is missing, but the checkpoint was taken after "
+                                  f"{keep} rows of it: restore the file, or start a new run")
+        rows: list[list[str]] = []
+        with open(self.path, newline="", errors="replace") as f:
+            reader = csv.reader(f)
+            header = next(reader, None)
+            if header != self.columns:
+                raise CheckpointError(f"{self.path}: its columns {header} differ from this "
+                                      f"run's {self.columns}")
+            for row in reader:
+                if len(rows) >= keep:
+                    break
+                if len(row) == len(self.columns):
+                    rows.append(row)
+        if len(rows) < keep:
+            raise CheckpointError(f"{self.path} has {len(rows)} complete rows, but the "
+                                  f"checkpoint was taken after {keep}: the log was edited "
+                                  "or belongs to another run")
+        where = self.columns.index("episode") if "episode" in self.columns else None
+        last = 0
+        for k, row in enumerate(rows, start=1):
+            if where is None:
+                break
+            try:
+                episode = int(row[where])
+            except ValueError:
+                episode = None
+            ok = episode is not None and (episode == k if self.consecutive else episode > last)
+            if not ok:
+                raise CheckpointError(f"{self.path}, row {k}, column 'episode': "
+                                      f"{row[where]!r} out of order (two writers, or an edited "
+                                      "log); the run cannot continue this log")
+            last = episode
+        return rows
+
+    def rewrite(self, rows: list[list[str]]) -> None:
+        """Replace the file (atomically) by the header and ``rows``."""
         text = io.StringIO()
         writer = csv.writer(text, lineterminator="\n")
         writer.writerow(self.columns)
         writer.writerows(rows)
         with atomic_open(self.path) as f:
             f.write(text.getvalue().encode())
+
+    def truncate(self, keep: int) -> None:
+        """Keep the header and the first ``keep`` complete rows (checked, rewritten atomically)."""
+        self.rewrite(self.verified(keep))
 
     def append(self, rows: list[dict]) -> None:
         if not rows:

@@ -1,0 +1,120 @@
+"""One check of every settings dataclass against its declared field types.
+
+Config files are YAML, where ``2.5``, ``"ten"`` and ``true`` all parse, and a number in
+the wrong place would otherwise surface later as a confusing error deep in the code (or,
+for ``episodes: true``, as a run of one episode). Each settings dataclass calls
+``check_field_types(self)`` first thing in ``__post_init__``, so whatever built it (a
+file, the command line, code) meets the same rule: ints are ints (not bools, not
+2.5), floats are finite numbers, bools are bools, tuples have their declared length, and
+the error names the field.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import numbers
+import types
+import typing
+from collections.abc import Mapping
+from functools import cache
+
+import numpy as np
+
+from dualarm.errors import InputError
+
+
+@cache
+def _hints(cls: type) -> dict[str, object]:
+    return typing.get_type_hints(cls)
+
+
+def describe(tp) -> str:
+    """A reader's name for a declared type: "an integer", "true or false", ..."""
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join("null" if a is type(None) else describe(a) for a in args)
+    if origin is tuple:
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"a list of {describe(args[0]).removeprefix('a ').removeprefix('an ')}s"
+        return f"a list of {len(args)} {describe(args[0]).removeprefix('a ').removeprefix('an ')}s"
+    return {bool: "true or false", int: "an integer", float: "a number", str: "a string",
+            dict: "a mapping"}.get(tp, getattr(tp, "__name__", str(tp)))
+
+
+class _Mismatch(Exception):
+    pass
+
+
+def conform(value, tp):
+    """``value`` as the declared type ``tp`` (lists become tuples, ints become floats where
+    a float is declared); raises ``_Mismatch`` if it is not one."""
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        for option in args:
+            if option is type(None):
+                continue
+            try:
+                return conform(value, option)
+            except _Mismatch:
+                pass
+        raise _Mismatch
+    if tp is bool:
+        if isinstance(value, (bool, np.bool_)):
+            return bool(value)
+        raise _Mismatch
+    if tp is int:
+        if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+            return int(value)
+        raise _Mismatch
+    if tp is float:
+        if (isinstance(value, numbers.Real) and not isinstance(value, bool)
+                and math.isfinite(float(value))):
+            return float(value)
+        raise _Mismatch
+    if tp is str:
+        if isinstance(value, str):
+            return value
+        raise _Mismatch
+    if tp is dict or origin is dict:
+        if isinstance(value, Mapping):
+            return value
+        raise _Mismatch
+    if origin is tuple:
+        if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
+            raise _Mismatch
+        if len(args) == 2 and args[1] is Ellipsis:
+            kinds = [args[0]] * len(value)
+        elif len(args) == len(value):
+            kinds = list(args)
+        else:
+            raise _Mismatch
+        return tuple(conform(v, k) for v, k in zip(value, kinds))
+    if isinstance(tp, type):
+        if isinstance(value, tp):
+            return value
+        raise _Mismatch
+    return value                      # an annotation this check does not know: left alone
+
+
+def check_field_types(obj) -> None:
+    """Check (and normalise) every field of the dataclass instance ``obj`` against its
+    declared type.
+
+    Raises:
+        InputError: naming the first field whose value is not of its type, the type
+            expected and the value given ("episodes: expected an integer, got 2.5").
+    """
+    hints = _hints(type(obj))
+    for f in dataclasses.fields(obj):
+        value = getattr(obj, f.name)
+        try:
+            fixed = conform(value, hints[f.name])
+        except _Mismatch:
+            shown = repr(value) if not isinstance(value, bool) else str(value).lower()
+            raise InputError(f"{f.name}: expected {describe(hints[f.name])}, got {shown[:80]}"
+                             f" ({type(value).__name__})") from None
+        if fixed is not value:
+            object.__setattr__(obj, f.name, fixed)

@@ -1,0 +1,251 @@
+"""Hostile and careless input, command by command: one line, exit 2, nothing changed on disk.
+
+Each case is one row of ``CASES``: the command line (run in a copy of a small world of
+valid files: a recording, a constraints file, a finished run, a config), files to add or
+break first, the phrase the one-line error must contain, and the exit code. Unless a case
+says otherwise, every file of the world must be byte for byte what it was (the lock file,
+which records its latest holder, aside). Add a case in one line.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import shlex
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import pytest
+
+from dualarm.cli import main
+from dualarm.constraints import default_constraints_path
+from dualarm.locks import LOCK_NAME, DirectoryLock
+from dualarm.mocap.io import write_csv
+from dualarm.mocap.synthetic import example_recording
+from dualarm.training import TrainConfig, train
+
+TINY = {"num_envs": 2, "episodes": 2, "eval_every": 2, "eval_episodes": 2,
+        "algo": {"hidden": [16, 16], "batch_size": 16, "warmup_steps": 0, "buffer_size": 2000},
+        "task": {"max_episode_steps": 5}}
+GOOD_CONFIG = "num_envs: 2\neval_every: 0\nepisodes: 1\nalgo: {hidden: [16, 16], batch_size: 16}\n"
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory) -> Path:
+    """The valid files every case starts from."""
+    root = tmp_path_factory.mktemp("world")
+    write_csv(example_recording(), root / "rec.csv")
+    shutil.copy(default_constraints_path("multi"), root / "c.yaml")
+    (root / "good.yaml").write_text(GOOD_CONFIG)
+    train(TrainConfig.from_dict(TINY), root / "run", progress=False)
+    return root
+
+
+def snapshot(root: Path) -> dict[str, str]:
+    """Relative path -> sha256 of every file under ``root`` (lock files aside)."""
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file() and p.name != LOCK_NAME}
+
+
+def hold_lock(folder: str) -> Callable[[Path], contextlib.AbstractContextManager]:
+    """A case's ``during``: another writer holds ``folder`` while the command runs."""
+    return lambda root: DirectoryLock(root / folder, "dualarm train")
+
+
+@dataclass
+class Case:
+    id: str
+    argv: str                          # the command line after `dualarm`, run in the case's folder
+    phrase: str                        # must be in the one-line error
+    files: dict[str, str | bytes | None] = field(default_factory=dict)   # None deletes
+    during: Callable[[Path], contextlib.AbstractContextManager] | None = None
+    code: int = 2
+
+
+def config(text: str) -> dict[str, str]:
+    return {"bad.yaml": text}
+
+
+CASES = [
+    # ---- train: every field of a config file is type-checked at load, named with the file
+    Case("train-episodes-zero", "train --episodes 0 --out r", "must be at least 1"),
+    Case("train-episodes-word", "train --episodes ten --out r", "not an integer"),
+    Case("config-episodes-float", "train --config bad.yaml --out r", "bad.yaml: episodes: expected an integer, got 2.5",
+         config("episodes: 2.5\n")),
+    Case("config-episodes-string", "train --config bad.yaml --out r", "episodes: expected an integer, got 'ten'",
+         config("episodes: ten\n")),
+    Case("config-episodes-bool", "train --config bad.yaml --out r", "episodes: expected an integer, got true",
+         config("episodes: true\n")),
+    Case("config-episodes-negative", "train --config bad.yaml --out r", "episodes must be at least 1",
+         config("episodes: -1\n")),
+    Case("config-episodes-list", "train --config bad.yaml --out r", "episodes: expected an integer",
+         config("episodes: [1]\n")),
+    Case("config-num-envs-zero", "train --config bad.yaml --out r", "num_envs must be at least 1",
+         config("num_envs: 0\n")),
+    Case("config-seed-string", "train --config bad.yaml --out r", "seed: expected an integer", config("seed: x\n")),
+    Case("config-condition", "train --config bad.yaml --out r", "condition must be one of", config("condition: maybe\n")),
+    Case("config-unknown-field", "train --config bad.yaml --out r", "unknown field(s) ['epsiodes']",
+         config("epsiodes: 3\n")),
+    Case("config-not-mapping", "train --config bad.yaml --out r", "expected a mapping", config("- 1\n- 2\n")),
+    Case("config-not-yaml", "train --config bad.yaml --out r", "YAML syntax error at line 2", config("episodes: [\n")),
+    Case("config-not-utf8", "train --config bad.yaml --out r", "bad.yaml", config(b"episodes: \xff\xfe\n")),
+    Case("config-missing", "train --config nope.yaml --out r", "nope.yaml"),
+    Case("config-eval-every-float", "train --config bad.yaml --out r", "eval_every: expected an integer",
+         config("eval_every: 0.5\n")),
+    Case("config-checkpoint-minutes", "train --config bad.yaml --out r", "checkpoint_minutes must be > 0",
+         config("checkpoint_minutes: 0\n")),
+    Case("config-her-share", "train --config bad.yaml --out r", "her_share must be in [0, 1]", config("her_share: 2\n")),
+    Case("config-start-probs-short", "train --config bad.yaml --out r", "start_probs: expected a list of 3 numbers",
+         config("start_probs: [0.5, 0.5]\n")),
+    Case("config-start-probs-sum", "train --config bad.yaml --out r", "sum to 1", config("start_probs: [0.5, 0.6, 0.1]\n")),
+    Case("config-algo-scalar", "train --config bad.yaml --out r", "algo: expected a mapping", config("algo: 5\n")),
+    Case("config-algo-hidden", "train --config bad.yaml --out r", "algo: hidden: expected a list of integers",
+         config("algo: {hidden: [64, x]}\n")),
+    Case("config-algo-gamma", "train --config bad.yaml --out r", "algo: gamma: invalid value 1.5",
+         config("algo: {gamma: 1.5}\n")),
+    Case("config-algo-nan", "train --config bad.yaml --out r", "algo: actor_lr: expected a number, got nan",
+         config("algo: {actor_lr: .nan}\n")),
+    Case("config-algo-unknown", "train --config bad.yaml --out r", "unknown DADDPG field(s) ['lr']",
+         config("algo: {lr: 0.1}\n")),
+    Case("config-task-c0", "train --config bad.yaml --out r", "task: guide_c0: expected a list of 3 numbers",
+         config("task: {guide_c0: [1, 2]}\n")),
+    Case("config-task-control", "train --config bad.yaml --out r", "task: control must be one of",
+         config("task: {control: warp}\n")),
+    Case("config-task-unknown", "train --config bad.yaml --out r", "not supported", config("task: {scene: 1}\n")),
+    Case("config-task-bool", "train --config bad.yaml --out r", "task: terminate_on_success: expected true or false",
+         config("task: {terminate_on_success: 1}\n")),
+    Case("train-constraints-missing", "train --condition multi --constraints nope.yaml --out r", "nope.yaml"),
+    Case("train-multi-constraints-for-single", "train --condition single --constraints c.yaml --out r",
+         "c.yaml: condition 'single' needs one segment"),
+    Case("train-constraints-for-none", "train --condition none --constraints c.yaml --out r", "needs --condition"),
+    Case("train-constraints-not-yaml", "train --condition multi --constraints bad.yaml --out r", "bad.yaml",
+         {"bad.yaml": "segments: [\n"}),
+    Case("train-out-is-file", "train --config good.yaml --out rec.csv", "is an existing file"),
+    Case("train-out-holds-run", "train --config good.yaml --out run", "already holds a run"),
+    Case("train-out-busy", "train --config good.yaml --out fresh", "in use by dualarm train", during=hold_lock("fresh")),
+    # ---- resume: continues the same run exactly, or changes nothing and says why
+    Case("resume-nothing", "train --resume nowhere", "no run to resume"),
+    Case("resume-fewer-episodes", "train --resume run --episodes 1", "has done 2 episodes, more than --episodes 1"),
+    Case("resume-metrics-deleted", "train --resume run --episodes 3", "metrics.csv is missing",
+         {"run/metrics.csv": None}),
+    Case("resume-metrics-interleaved", "train --resume run --episodes 3", "out of order",
+         {"run/metrics.csv": lambda text: _swap_rows(text)}),
+    Case("resume-metrics-short", "train --resume run --episodes 3", "complete rows",
+         {"run/metrics.csv": lambda text: "\n".join(text.splitlines()[:2]) + "\n"}),
+    Case("resume-eval-columns", "train --resume run --episodes 3", "columns",
+         {"run/eval.csv": "a,b\n1,2\n"}),
+    Case("resume-checkpoint-corrupt", "train --resume run --episodes 3", "latest.pt: not a checkpoint",
+         {"run/checkpoints/latest.pt": b"not a checkpoint"}),
+    Case("resume-config-edited", "train --resume run --episodes 3", "different settings (seed)",
+         {"run/config.yaml": lambda text: text.replace("seed: 0", "seed: 5")}),
+    Case("resume-config-broken", "train --resume run --episodes 3", "config.yaml: episodes: expected an integer",
+         {"run/config.yaml": lambda text: text.replace("episodes: 2", "episodes: two")}),
+    Case("resume-constraints-deleted", "train --resume run --episodes 3", "constraints.yaml",
+         {"run/constraints.yaml": None}),
+    Case("resume-busy", "train --resume run --episodes 3", "in use by dualarm train", during=hold_lock("run")),
+    # ---- outputs never destroy inputs or run files
+    Case("joints-onto-input", "mocap joints rec.csv -o rec.csv", "--output is also the input INPUT"),
+    Case("joints-two-outputs", "mocap joints rec.csv -o a.csv --residuals a.csv", "name the same file"),
+    Case("joints-output-folder", "mocap joints rec.csv -o run", "is a folder"),
+    Case("joints-into-run", "mocap joints rec.csv -o run/metrics.csv", "is a file of the run directory"),
+    Case("joints-missing-input", "mocap joints nope.csv -o a.csv", "nope.csv"),
+    Case("joints-not-utf8", "mocap joints bad.csv -o a.csv", "bad.csv", {"bad.csv": b"time,\xff\xfe\n1,2\n"}),
+    Case("joints-empty-input", "mocap joints bad.csv -o a.csv", "bad.csv", {"bad.csv": ""}),
+    Case("plot-output-is-file", "mocap plot rec.csv -o c.yaml", "is an existing file"),
+    Case("example-into-run", "mocap example -o run/eval.csv", "is a file of the run directory"),
+    Case("example-into-checkpoints", "mocap example -o run/checkpoints/x.csv", "is a file of the run directory"),
+    Case("quickstart-output-is-file", "quickstart -o rec.csv", "is an existing file"),
+    Case("export-onto-metrics", "export run -o run/metrics.csv", "is a file of the run directory"),
+    Case("export-onto-config", "export run -o run/config.yaml", "is a file of the run directory"),
+    Case("export-onto-run", "export run -o run", "is also the input DIR"),
+    Case("play-onto-curves", "play run -o run/curves.png", "is a file of the run directory"),
+    Case("eval-not-a-run", "eval rec.csv", "not a run directory"),
+    Case("eval-best-corrupt", "eval run", "best_policy.pt: not a checkpoint", {"run/checkpoints/best_policy.pt": b"\x00" * 10}),
+    Case("constraints-plot-onto-input", "constraints plot c.yaml -o c.yaml", "is also the input"),
+    Case("constraints-plot-missing", "constraints plot nope.yaml -o f.png", "nope.yaml"),
+    Case("constraints-plot-inverted", "constraints plot bad.yaml -o f.png", "bad.yaml",
+         {"bad.yaml": lambda _: _inverted_constraints()}),
+    Case("constraints-analyze-output-file", "constraints analyze c.yaml -o rec.csv", "is an existing file"),
+    Case("compare-output-is-file", "compare --conditions none --seeds 0 -o rec.csv", "is an existing file"),
+    Case("compare-bad-seeds", "compare --seeds x -o cmp", "expected integers"),
+    Case("compare-bad-condition", "compare --conditions bogus -o cmp", "bogus"),
+    Case("compare-bad-config", "compare --config bad.yaml -o cmp", "bad.yaml: episodes: expected an integer",
+         config("episodes: 2.5\n")),
+    Case("compare-busy", "compare --conditions none --seeds 0 -o cmp", "in use by", during=hold_lock("cmp")),
+    Case("report-onto-input", "report run -o run", "is also the input"),
+    Case("report-missing", "report nowhere", "nowhere"),
+]
+
+
+def _swap_rows(text: str) -> str:
+    lines = text.splitlines()
+    lines[1], lines[2] = lines[2], lines[1]
+    return "\n".join(lines) + "\n"
+
+
+def _inverted_constraints() -> str:
+    text = default_constraints_path("multi").read_text()
+    start = text.index("lower:")
+    return text[:start] + "lower: [3" + text[text.index(",", start):]
+
+
+def _apply(root: Path, files: dict) -> None:
+    for name, content in files.items():
+        path = root / name
+        if content is None:
+            path.unlink()
+        elif callable(content):
+            path.write_text(content(path.read_text() if path.exists() else ""))
+        elif isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            path.write_text(content)
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+def test_hostile_input_gets_one_line_and_changes_nothing(case, world, tmp_path, monkeypatch, capsys):
+    root = tmp_path / "w"
+    shutil.copytree(world, root)
+    _apply(root, case.files)
+    before = snapshot(root)
+    monkeypatch.chdir(root)
+    holder = case.during(root) if case.during else contextlib.nullcontext()
+    with holder:
+        try:
+            code = main(shlex.split(case.argv))
+        except SystemExit as exc:          # argparse's own errors
+            code = exc.code
+    err = capsys.readouterr().err
+    assert code == case.code, err
+    assert "Traceback" not in err
+    lines = [line for line in err.splitlines() if line.startswith("dualarm")]
+    assert lines and case.phrase in lines[-1], err
+    assert snapshot(root) == before
+    if case.during is None:           # and no lock file left where there was no folder
+        assert not (root / "r").exists() and not (root / "fresh").exists()
+
+
+def test_there_are_enough_hostile_cases():
+    assert len(CASES) >= 60 and len({c.id for c in CASES}) == len(CASES)
+
+
+def test_a_run_resumes_from_anywhere_after_being_moved(world, tmp_path, monkeypatch):
+    """A run started with a relative --constraints path keeps its own copy, so it resumes
+    from another working directory after being moved (issue: a run that cannot move)."""
+    start, other = tmp_path / "start", tmp_path / "other"
+    start.mkdir(), other.mkdir()
+    shutil.copy(world / "c.yaml", tmp_path / "base.yaml")
+    (start / "tiny.yaml").write_text(GOOD_CONFIG.replace("episodes: 1", "episodes: 2"))
+    monkeypatch.chdir(start)
+    assert main(["train", "--config", "tiny.yaml", "--condition", "multi", "--constraints",
+                 "../base.yaml", "--out", "r"]) == 0
+    shutil.move(start / "r", tmp_path / "moved")
+    (tmp_path / "base.yaml").unlink()                       # the original is gone too
+    monkeypatch.chdir(other)
+    assert main(["train", "--resume", str(tmp_path / "moved"), "--episodes", "4"]) == 0
+    lines = (tmp_path / "moved" / "metrics.csv").read_text().splitlines()[1:]
+    assert [int(line.split(",")[0]) for line in lines] == [1, 2, 3, 4]
+    assert ((tmp_path / "moved" / "constraints.yaml").read_bytes()
+            == (world / "c.yaml").read_bytes())

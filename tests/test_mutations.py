@@ -1,0 +1,116 @@
+"""Property tests: valid input files mutated at random (a line deleted or repeated, a value of
+another type, NaN, a truncation, bytes that are not UTF-8) are either still read, or refused
+with the project's one-line input error, never with another exception."""
+
+from __future__ import annotations
+
+import gzip
+import shutil
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from dualarm.cli import main
+from dualarm.constraint_extraction import read_labels
+from dualarm.constraints import ConstraintSet, default_constraints_path
+from dualarm.errors import DualarmError
+from dualarm.training import TrainConfig
+
+DEMOS = default_constraints_path("multi").parent.parent / "demos"
+CONFIG = ("condition: single\nepisodes: 40\nseed: 3\nnum_envs: 4\nstart_probs: [0.5, 0.25, 0.25]\n"
+          "her_share: 0.5\ntask: {max_episode_steps: 20, guide_c0: [0.01, 0.01, 0.05]}\n"
+          "algo: {hidden: [64, 64], gamma: 0.98, reward_scale: 0.01, twin_critics: true}\n")
+REPLACEMENTS = [b"", b"x", b"nan", b".nan", b"inf", b"-1", b"0", b"1e400", b"true", b"[1, 2]",
+                b"{a: 1}", b"null", b",", b"\"", b"\xff\xfe", b"\x00", b"   "]
+SETTINGS = settings(max_examples=40, deadline=None, derandomize=True,
+                    suppress_health_check=[HealthCheck.function_scoped_fixture])
+
+
+@st.composite
+def mutated(draw, original: bytes) -> bytes:
+    """``original`` with one random edit."""
+    lines = original.split(b"\n")
+    kind = draw(st.sampled_from(["delete", "repeat", "replace", "truncate", "insert"]))
+    k = draw(st.integers(0, len(lines) - 1))
+    if kind == "delete":
+        del lines[k]
+    elif kind == "repeat":
+        lines.insert(k, lines[k])
+    elif kind == "truncate":
+        return original[:draw(st.integers(0, len(original) - 1))]
+    else:
+        line = lines[k]
+        cells = line.replace(b":", b",").split(b",")
+        j = draw(st.integers(0, max(0, len(cells) - 1)))
+        new = draw(st.sampled_from(REPLACEMENTS))
+        if kind == "replace" and cells[j]:
+            start = line.find(cells[j])
+            lines[k] = line[:start] + new + line[start + len(cells[j]):]
+        else:
+            at = draw(st.integers(0, len(line)))
+            lines[k] = line[:at] + new + line[at:]
+    return b"\n".join(lines)
+
+
+def survives(call) -> None:
+    """``call()`` succeeds or raises the project's input error; anything else fails the test."""
+    try:
+        call()
+    except DualarmError as exc:
+        assert "\n" not in str(exc).strip(), str(exc)
+
+
+def short_recording() -> bytes:
+    """The first 3 s of a shipped demonstration (IMU quaternions at 100 Hz, 6 sensors)."""
+    lines = gzip.decompress((DEMOS / "demo_00.csv.gz").read_bytes()).split(b"\n")
+    return b"\n".join(lines[:301]) + b"\n"
+
+
+@SETTINGS
+@given(data=st.data())
+def test_a_mutated_recording_maps_or_is_refused(data, tmp_path):
+    path = tmp_path / "rec.csv"
+    path.write_bytes(data.draw(mutated(short_recording())))
+    out = tmp_path / "joints.csv"
+    out.unlink(missing_ok=True)            # tmp_path is shared by the examples
+    code = main(["mocap", "joints", str(path), "-o", str(out), "-q"])
+    assert code in (0, 2)
+    if code == 2:
+        assert not out.exists()          # no partial output
+
+
+@SETTINGS
+@given(data=st.data())
+def test_a_mutated_labels_file_reads_or_is_refused(data, tmp_path):
+    path = tmp_path / "labels.csv"
+    path.write_bytes(data.draw(mutated((DEMOS / "labels.csv").read_bytes())))
+    survives(lambda: read_labels(path))
+
+
+@SETTINGS
+@given(data=st.data())
+def test_a_mutated_constraints_file_loads_or_is_refused(data, tmp_path):
+    path = tmp_path / "c.yaml"
+    path.write_bytes(data.draw(mutated(default_constraints_path("multi").read_bytes())))
+    survives(lambda: ConstraintSet.load(path))
+
+
+@SETTINGS
+@given(data=st.data())
+def test_a_mutated_training_config_loads_or_is_refused(data, tmp_path):
+    path = tmp_path / "config.yaml"
+    path.write_bytes(data.draw(mutated(CONFIG.encode())))
+    survives(lambda: TrainConfig.load(path).task_config())
+
+
+@pytest.mark.parametrize("name", ["rec.csv"])
+def test_the_unmutated_files_are_valid(name, tmp_path):
+    """The originals themselves load (so that the properties above test the mutations)."""
+    (tmp_path / name).write_bytes(short_recording())
+    assert main(["mocap", "joints", str(tmp_path / name), "-o", str(tmp_path / "j.csv"), "-q"]) == 0
+    (tmp_path / "c.yaml").write_text(CONFIG)
+    assert TrainConfig.load(tmp_path / "c.yaml").start_probs == (0.5, 0.25, 0.25)
+    assert len(read_labels(DEMOS / "labels.csv")) == 10
+    shutil.copy(default_constraints_path("multi"), tmp_path / "m.yaml")
+    assert ConstraintSet.load(tmp_path / "m.yaml").name == "multi"
