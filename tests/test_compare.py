@@ -167,9 +167,9 @@ def test_rerun_skips_finished_resumes_partial_and_reports_failed(tmp_path, base_
 
 
 def test_a_second_comparison_on_the_same_directory_is_refused(tmp_path, capsys):
-    from dualarm.locks import locked
+    from dualarm.locks import DirectoryLock
 
-    with locked(tmp_path / "cmp", "dualarm compare"):
+    with DirectoryLock(tmp_path / "cmp", "dualarm compare"):
         assert main(["compare", "--conditions", "none", "--seeds", "0", "-o", str(tmp_path / "cmp")]) == 2
     assert f"in use by dualarm compare, pid {os.getpid()}" in capsys.readouterr().err
 

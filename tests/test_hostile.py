@@ -260,3 +260,16 @@ def test_a_run_resumes_from_anywhere_after_being_moved(world, tmp_path, monkeypa
     assert [int(line.split(",")[0]) for line in lines] == [1, 2, 3, 4]
     assert ((tmp_path / "moved" / "constraints.yaml").read_bytes()
             == (world / "c.yaml").read_bytes())
+
+
+def test_the_command_line_knows_every_file_of_a_run_directory(world):
+    """cli_types spells out a run directory's own names (to keep torch out of its imports):
+    they must be RunPaths' names, and the done marker's."""
+    from dualarm.cli_types import RUN_FILES, RUN_FOLDERS
+    from dualarm.experiments.backends import DONE_MARKER
+    from dualarm.training.run_dir import RunPaths
+
+    paths = RunPaths(world / "run")
+    own = {p.name for p in vars(paths).values() if isinstance(p, Path) and p.parent == paths.root}
+    assert own == set(RUN_FILES + RUN_FOLDERS) - {LOCK_NAME, DONE_MARKER}
+    assert {p.name for p in (world / "run").iterdir()} <= set(RUN_FILES + RUN_FOLDERS)

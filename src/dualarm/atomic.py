@@ -41,3 +41,10 @@ def atomic_open(path: str | os.PathLike) -> Iterator[BinaryIO]:
         yield out
         out.flush()
         os.fsync(out.fileno())
+
+
+def atomic_copy(source: str | os.PathLike, target: str | os.PathLike) -> None:
+    """Copy the bytes of ``source`` to ``target`` atomically (``atomic_open``)."""
+    data = Path(source).read_bytes()
+    with atomic_open(target) as out:
+        out.write(data)

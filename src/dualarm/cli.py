@@ -10,13 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from dualarm import __version__
-from dualarm.cli_types import (
-    InputPath,
-    OutputDir,
-    OutputFile,
-    check_paths,
-    option_names,
-)
+from dualarm.cli_types import InputPath, OutputDir, OutputFile, check_paths, option_names
 from dualarm.errors import DualarmError
 
 EXAMPLE_RECORDING = Path(__file__).parent / "data" / "example_recording.csv.gz"

@@ -45,8 +45,6 @@ def _auto_windows(demos, args) -> dict[str, np.ndarray]:
 def _check_output(path: Path, suffixes: tuple[str, ...]) -> None:
     if not path.name.lower().endswith(suffixes):
         raise InputError(f"output must end in {' or '.join(suffixes)}", source=str(path))
-    if path.is_dir():
-        raise InputError("output is a folder, expected a file", source=str(path))
 
 
 # --------------------------------------------------------------------------- demos
@@ -56,8 +54,6 @@ def cmd_demos_generate(args: argparse.Namespace) -> int:
     from dualarm.demos import generate_demos, write_demo_set
 
     out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise InputError("output exists and is not a folder", source=str(out))
     demos = generate_demos(args.count, args.seed, progress=not args.quiet)
     paths = write_demo_set(demos, out)
     if not args.quiet:
@@ -69,12 +65,8 @@ def cmd_demos_generate(args: argparse.Namespace) -> int:
 
 def cmd_demos_segment(args: argparse.Namespace) -> int:
     """Segment demonstrations automatically; compare with labels when there are any."""
-    from dualarm.constraint_extraction import (
-        load_demo_dir,
-        read_labels,
-        segmentation_agreement,
-        write_labels,
-    )
+    from dualarm.constraint_extraction import (load_demo_dir, read_labels, segmentation_agreement,
+                                               write_labels)
 
     if args.output:
         _check_output(args.output, (".csv",))
@@ -111,11 +103,7 @@ def cmd_demos_segment(args: argparse.Namespace) -> int:
 
 def cmd_constraints_extract(args: argparse.Namespace) -> int:
     """Eq. 12 over a folder of demonstrations -> constraints YAML."""
-    from dualarm.constraint_extraction import (
-        extract_constraints,
-        extraction_provenance,
-        load_demo_dir,
-    )
+    from dualarm.constraint_extraction import extract_constraints, extraction_provenance, load_demo_dir
     from dualarm.constraints import parse_segments
 
     _check_output(args.output, (".yaml", ".yml"))
@@ -173,16 +161,10 @@ def cmd_constraints_plot(args: argparse.Namespace) -> int:
 
 def cmd_constraints_analyze(args: argparse.Namespace) -> int:
     """Volume fractions and the expert's share of steps inside, for one or more constraint files."""
-    from dualarm.constraint_extraction import (
-        arm_volume_fractions,
-        expert_inside_fractions,
-        expert_rollouts,
-        width_fractions,
-    )
+    from dualarm.constraint_extraction import (arm_volume_fractions, expert_inside_fractions, expert_rollouts,
+                                               width_fractions)
     from dualarm.constraints import JOINT_COLUMNS, ConstraintSet
 
-    if args.output is not None and args.output.exists() and not args.output.is_dir():
-        raise InputError("output exists and is not a folder", source=str(args.output))
     sets = {}
     for path in args.constraints:
         label = Path(path).stem

@@ -14,12 +14,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     Exit status: 0 when every run finished, 1 when a run failed, 130 when interrupted.
     """
     from dualarm.experiments.backends import make_backend
-    from dualarm.experiments.compare import (
-        CompareRequest,
-        compare,
-        parse_conditions,
-        parse_seeds,
-    )
+    from dualarm.experiments.compare import CompareRequest, compare, parse_conditions, parse_seeds
     from dualarm.training import TrainConfig
 
     request = CompareRequest(

@@ -14,7 +14,7 @@ from dualarm.errors import InputError
 
 def cmd_train(args: argparse.Namespace) -> int:
     """Start a run (or resume one with --resume) and report where it ended."""
-    from dualarm.training import TrainConfig, Trainer
+    from dualarm.training import Trainer, TrainConfig
 
     if args.resume:
         ignored = [name for name in ("condition", "constraints", "seed", "out", "num_envs", "config")

@@ -6,6 +6,8 @@ import argparse
 import math
 from pathlib import Path
 
+from dualarm.locks import LOCK_NAME
+
 
 def _number(text: str, kind=float):
     try:
@@ -72,7 +74,9 @@ class OutputDir(_ConcretePath):
 
 #: Names a run directory keeps for itself (dualarm.training.run_dir.RunPaths), and folders of
 #: its own whose every file is the run's.
-RUN_FILES = ("config.yaml", "metrics.csv", "eval.csv", "curves.png", "constraints.yaml", ".lock",
+#: Written out rather than read from RunPaths, which would import torch into every command;
+#: tests/test_hostile.py checks that the two agree.
+RUN_FILES = ("config.yaml", "metrics.csv", "eval.csv", "curves.png", "constraints.yaml", LOCK_NAME,
              "done.yaml")
 RUN_FOLDERS = ("checkpoints", "events")
 

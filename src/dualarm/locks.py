@@ -13,7 +13,6 @@ import os
 import socket
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 from dualarm.errors import DualarmError
@@ -78,6 +77,8 @@ class DirectoryLock:
         self._file = None
 
     def __enter__(self) -> "DirectoryLock":
+        """``with DirectoryLock(dir, "dualarm compare"):`` holds it for the block (a block that
+        fails also removes the directory if the lock made it and nothing else is in it)."""
         return self
 
     def __exit__(self, *exc) -> None:
@@ -87,9 +88,3 @@ class DirectoryLock:
         if getattr(self, "_file", None) is not None and not sys.is_finalizing():
             self.release()
 
-
-@contextlib.contextmanager
-def locked(root: str | os.PathLike, purpose: str) -> Iterator[DirectoryLock]:
-    """``with locked(dir, "dualarm compare"):`` hold the directory's lock for the block."""
-    with DirectoryLock(root, purpose) as lock:
-        yield lock

@@ -35,9 +35,9 @@ def describe(tp) -> str:
     if origin in (typing.Union, types.UnionType):
         return " or ".join("null" if a is type(None) else describe(a) for a in args)
     if origin is tuple:
-        if len(args) == 2 and args[1] is Ellipsis:
-            return f"a list of {describe(args[0]).removeprefix('a ').removeprefix('an ')}s"
-        return f"a list of {len(args)} {describe(args[0]).removeprefix('a ').removeprefix('an ')}s"
+        item = describe(args[0]).removeprefix("an ").removeprefix("a ")
+        count = "" if len(args) == 2 and args[1] is Ellipsis else f"{len(args)} "
+        return f"a list of {count}{item}s"
     return {bool: "true or false", int: "an integer", float: "a number", str: "a string",
             dict: "a mapping"}.get(tp, getattr(tp, "__name__", str(tp)))
 

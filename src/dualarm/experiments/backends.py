@@ -23,8 +23,8 @@ import shutil
 import socket
 import tarfile
 import tempfile
-import threading
 import sys
+import threading
 import time
 import traceback
 from dataclasses import dataclass, replace

@@ -21,16 +21,10 @@ from pathlib import Path
 
 import yaml
 
-from dualarm.atomic import atomic_open
+from dualarm.atomic import atomic_copy, atomic_open
 from dualarm.errors import InputError
-from dualarm.experiments.backends import (
-    MANIFEST,
-    RunOutcome,
-    RunTask,
-    logged_episodes,
-    read_done,
-)
-from dualarm.locks import locked
+from dualarm.experiments.backends import MANIFEST, RunOutcome, RunTask, logged_episodes, read_done
+from dualarm.locks import DirectoryLock
 from dualarm.training.config import TrainConfig
 from dualarm.training.run_dir import RunPaths
 from dualarm.yaml_io import read_yaml
@@ -324,8 +318,7 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
     for plan in comparison.runs():
         _check_run_dir(plan)
     for condition, source in copies.items():
-        with atomic_open(comparison.constraints_path(condition)) as f:
-            f.write(source.read_bytes())
+        atomic_copy(source, comparison.constraints_path(condition))
     save_manifest(comparison)
     return comparison
 
@@ -456,7 +449,7 @@ def run_comparison(comparison: Comparison, backend, poll_s: float = 2.0, progres
 def compare(root: str | Path, request: CompareRequest, backend, poll_s: float = 2.0,
             progress: bool = True, stream=None) -> CompareResult:
     """``prepare`` the comparison in ``root`` and ``run_comparison`` it, holding its lock."""
-    with locked(root, "dualarm compare"):
+    with DirectoryLock(root, "dualarm compare"):
         comparison = prepare(root, request)
         return run_comparison(comparison, backend, poll_s=poll_s, progress=progress, stream=stream)
 

@@ -20,9 +20,8 @@ from typing import Callable
 
 import numpy as np
 import torch
-import yaml
 
-from dualarm.atomic import atomic_open
+from dualarm.atomic import atomic_copy
 from dualarm.envs.baxter import HEAD_TERMS, TargetRelabeller
 from dualarm.errors import DualarmError, InputError
 from dualarm.locks import DirectoryLock
@@ -188,11 +187,9 @@ class Trainer:
             trainer = cls(config, paths, make_env, progress)
             source = config.constraints_file() if make_env is None else None
             if source is not None:
-                data = source.read_bytes()
-                with atomic_open(paths.constraints) as f:
-                    f.write(data)
+                atomic_copy(source, paths.constraints)
                 trainer.config = config.with_(constraints=str(paths.constraints))
-            trainer._save_config()
+            trainer.stored_config().save(paths.config)
             trainer.metrics.truncate(0)
             trainer.eval_log.truncate(0)
         except BaseException:
@@ -232,7 +229,7 @@ class Trainer:
             metrics = trainer.metrics.verified(trainer.episodes)
             evaluations = trainer.eval_log.verified(trainer.eval_rows)
             if episodes is not None:
-                trainer._save_config()
+                trainer.stored_config().save(paths.config)
             trainer.metrics.rewrite(metrics)
             trainer.eval_log.rewrite(evaluations)
         except BaseException:
@@ -247,17 +244,11 @@ class Trainer:
             self._lock.release()
             self._lock = None
 
-    def stored_config(self) -> dict:
+    def stored_config(self) -> TrainConfig:
         """The config as the run directory keeps it: its own constraints copy named
         relative to the directory (``TrainConfig.load`` resolves it there)."""
-        d = self.config.to_dict()
-        if d.get("constraints") and Path(d["constraints"]) == self.paths.constraints:
-            d["constraints"] = self.paths.constraints.name
-        return d
-
-    def _save_config(self) -> None:
-        with atomic_open(self.paths.config) as f:
-            f.write(yaml.safe_dump(self.stored_config(), sort_keys=False).encode())
+        own = self.config.constraints and Path(self.config.constraints) == self.paths.constraints
+        return self.config.with_(constraints=self.paths.constraints.name) if own else self.config
 
     # ------------------------------------------------------------- the loop
     def run(self) -> TrainResult:
@@ -425,7 +416,8 @@ class Trainer:
         if (result.success_rate, result.mean_return) > self.best:
             self.best = (result.success_rate, result.mean_return)
             save_checkpoint(self.paths.best, {"policy": self.agent.policy_state_dict(),
-                                              "config": self.stored_config(), "eval": self.last_eval})
+                                              "config": self.stored_config().to_dict(),
+                                              "eval": self.last_eval})
 
     def _log_round(self, rows: list[dict], losses: list[dict]) -> None:
         w = self._writer
@@ -448,7 +440,7 @@ class Trainer:
     def save(self) -> None:
         """Write ``checkpoints/latest.pt`` atomically (call between rounds only)."""
         save_checkpoint(self.paths.latest, {
-            "config": {**self.stored_config(), "episodes": 1},
+            "config": self.stored_config().with_(episodes=1).to_dict(),
             "learner": self.agent.state_dict(),
             "replay": self.buffer.state_dict(),
             "rng": self.rng.bit_generator.state,
@@ -464,7 +456,7 @@ class Trainer:
     def load(self, payload: dict) -> None:
         """Restore the state saved by ``save`` (the config must match but for ``episodes``)."""
         where = self.paths.latest
-        mine = {**self.stored_config(), "episodes": 1}
+        mine = self.stored_config().with_(episodes=1).to_dict()
         theirs = payload.get("config", {})
         try:   # settings added since the checkpoint was written take their defaults
             theirs = TrainConfig.from_dict(theirs).to_dict()

@@ -93,11 +93,14 @@ class CsvLog:
             raise CheckpointError(f"{self.path} has {len(rows)} complete rows, but the "
                                   f"checkpoint was taken after {keep}: the log was edited "
                                   "or belongs to another run")
-        where = self.columns.index("episode") if "episode" in self.columns else None
+        if "episode" in self.columns:
+            self._check_order(rows, self.columns.index("episode"))
+        return rows
+
+    def _check_order(self, rows: list[list[str]], where: int) -> None:
+        """Column ``where`` of ``rows`` reads 1, 2, 3, ... (or only increases)."""
         last = 0
         for k, row in enumerate(rows, start=1):
-            if where is None:
-                break
             try:
                 episode = int(row[where])
             except ValueError:
@@ -108,7 +111,6 @@ class CsvLog:
                                       f"{row[where]!r} out of order (two writers, or an edited "
                                       "log); the run cannot continue this log")
             last = episode
-        return rows
 
     def rewrite(self, rows: list[list[str]]) -> None:
         """Replace the file (atomically) by the header and ``rows``."""
