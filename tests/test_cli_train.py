@@ -65,6 +65,32 @@ def test_export_writes_time_joints_and_grip(run_dir, tmp_path, capsys):
     assert np.abs(np.diff(data[:, 1:15], axis=0)).max() > 0    # the arms moved
 
 
+def test_export_of_a_run_in_every_format(run_dir, tmp_path, capsys):
+    """A run's episode as a Baxter file and a ROS 2 bag (time-parameterised, replayed in the
+    simulator), and its policy as ONNX checked against PyTorch."""
+    assert main(["export", str(run_dir), "-o", str(tmp_path / "b.csv"), "--format", "baxter",
+                 "--seed", "4", "--replay"]) == 0
+    out = capsys.readouterr().out
+    assert "time-parameterised" in out and "replayed in the simulator" in out
+    with open(tmp_path / "b.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) > 11 and float(rows[-1]["time"]) > 0.2     # slower than 10 steps of 20 ms
+    assert main(["export", str(run_dir), "-o", str(tmp_path / "bag"), "--format", "ros2"]) == 0
+    assert (tmp_path / "bag" / "metadata.yaml").exists()
+    capsys.readouterr()
+    assert main(["export", str(run_dir), "-o", str(tmp_path / "p.onnx"), "--format", "onnx"]) == 0
+    line = capsys.readouterr().out
+    assert "over 1000 observations" in line
+    assert float(line.rsplit(" ", 1)[1]) < 1e-5
+
+
+def test_export_help_names_every_format(capsys):
+    with pytest.raises(SystemExit):
+        main(["export", "--help"])
+    text = capsys.readouterr().out
+    assert all(name in text for name in ("csv", "baxter", "ros2", "onnx"))
+
+
 def test_play_renders_a_video(run_dir, tmp_path, capsys):
     out = tmp_path / "play.gif"
     assert main(["play", str(run_dir), "-o", str(out), "--width", "64", "--height", "48",

@@ -291,18 +291,21 @@ def curriculum_config(**changes):
     return TrainConfig(**base)
 
 
-@pytest.mark.parametrize("heads", [False, True])
-def test_run_with_later_starts_and_hindsight_targets_resumes_exactly(tmp_path, heads):
-    """Start states and hindsight relabelling draw from the run's own seeded streams: a run
-    stopped at episode 8 and resumed gives the uninterrupted run's rows; the policy loads."""
+@pytest.mark.parametrize("heads,moving", [(False, 0.0), (True, 0.0), (False, 0.5)])
+def test_run_with_later_starts_and_hindsight_targets_resumes_exactly(tmp_path, heads, moving):
+    """Start states (fixed or under the reverse curriculum) and hindsight relabelling draw
+    from the run's own seeded streams: a run stopped at episode 8 and resumed gives the
+    uninterrupted run's rows; the policy loads."""
     from dualarm.training.policy import load_policy
 
-    train(curriculum_config(reward_heads=heads), tmp_path / "ref", progress=False)
-    train(curriculum_config(reward_heads=heads, episodes=8), tmp_path / "run", progress=False)
+    config = curriculum_config(reward_heads=heads, start_curriculum=moving)
+    train(config, tmp_path / "ref", progress=False)
+    train(config.with_(episodes=8), tmp_path / "run", progress=False)
     resume(tmp_path / "run", episodes=16, progress=False)
     ref = rows(tmp_path / "ref" / "metrics.csv")
     assert rows(tmp_path / "run" / "metrics.csv") == ref
     assert max(int(r["subtask_left"]) for r in ref) == 2          # some arms started holding
+    assert {r[f"start_{a}"] for r in ref for a in ("left", "right")} == {"0", "1", "2"}
     _, agent, _ = load_policy(tmp_path / "run")
     assert agent.num_heads == (3 if heads else 1)
     assert rows(tmp_path / "run" / "eval.csv", drop=("wall_time_s",)) == \
@@ -310,6 +313,10 @@ def test_run_with_later_starts_and_hindsight_targets_resumes_exactly(tmp_path, h
 
 
 def test_curriculum_options_are_checked(tmp_path):
+    with pytest.raises(ValueError, match="start_curriculum must be in"):
+        TrainConfig(start_probs=(0.2, 0.2, 0.6), start_curriculum=1.5)
+    with pytest.raises(ValueError, match="start_curriculum moves the start states"):
+        TrainConfig(start_curriculum=0.5)
     with pytest.raises(ValueError, match="her_share"):
         TrainConfig(her_share=1.5)
     with pytest.raises(ValueError, match="n_step"):

@@ -225,6 +225,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_demo_commands(sub)
     from dualarm.cli_train import add_train_commands
     add_train_commands(sub)
+    from dualarm.cli_export import add_export_command
+    add_export_command(sub)
     from dualarm.cli_report import add_report_commands
     add_report_commands(sub)
     from dualarm.cli_experiments import add_compare_commands

@@ -1,4 +1,4 @@
-"""`dualarm train | eval | play | export`: learn the task, and use what was learned."""
+"""`dualarm train | eval | play`: learn the task, and use what was learned."""
 
 from __future__ import annotations
 
@@ -73,16 +73,18 @@ def cmd_eval(args: argparse.Namespace) -> int:
     return 0
 
 
-def _episode(args: argparse.Namespace, camera: str | None):
-    """One episode of the run's deterministic policy, recording the actions."""
+def policy_episode(run: Path, checkpoint: str, seed: int, camera: str | None = None,
+                   size: tuple[int, int] | None = None):
+    """One episode of a run's deterministic policy from ``reset(seed)``, recording the
+    actions. Returns (env, episode, actions (steps, 2, U) in [-1, 1], checkpoint info)."""
     from dualarm.envs.baxter import BaxterReachGraspAlign
     from dualarm.envs.rollout import run_episode
     from dualarm.training.policy import load_policy, single_env_policy
 
-    config, agent, info = load_policy(args.run, args.checkpoint)
+    config, agent, info = load_policy(run, checkpoint)
     env = BaxterReachGraspAlign(config.task_config(), config.load_constraints())
-    if camera:
-        env.render_size = (args.height, args.width)
+    if size:
+        env.render_size = size
     policy = single_env_policy(agent)
     actions = []
 
@@ -91,7 +93,7 @@ def _episode(args: argparse.Namespace, camera: str | None):
         actions.append(np.clip(a, -1.0, 1.0))
         return a
 
-    episode = run_episode(env, recording, args.seed, camera=camera)
+    episode = run_episode(env, recording, seed, camera=camera)
     env.close()
     return env, episode, np.array(actions), info
 
@@ -101,7 +103,8 @@ def cmd_play(args: argparse.Namespace) -> int:
     from dualarm.cli_env import with_end_pause
     from dualarm.envs.rendering import write_video
 
-    env, episode, _, info = _episode(args, args.camera)
+    env, episode, _, info = policy_episode(args.run, args.checkpoint, args.seed, args.camera,
+                                           (args.height, args.width))
     frames = with_end_pause(episode.frames, args.fps)
     path = write_video(args.output, frames, fps=args.fps)
     print(f"{info['checkpoint']}: seed {args.seed}, {'success' if episode.success else 'failure'} in "
@@ -110,34 +113,8 @@ def cmd_play(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_export(args: argparse.Namespace) -> int:
-    """Write the planned joint trajectories of both arms for one episode as CSV."""
-    import csv
-    import io
-
-    from dualarm.atomic import atomic_open
-    from dualarm.constraints import JOINT_COLUMNS
-
-    env, episode, actions, info = _episode(args, None)
-    dt = env.config.control_period
-    grip = 0.5 * (actions[:, :, -1] + 1.0)                      # (steps, 2) closure, 0 open 1 closed
-    grip = np.vstack([np.zeros((1, 2)), grip])                  # fingers open at the start
-    text = io.StringIO()
-    writer = csv.writer(text, lineterminator="\n")
-    writer.writerow(["time", *JOINT_COLUMNS, "grip_left", "grip_right"])
-    for k, q in enumerate(episode.joint_angles):
-        writer.writerow([f"{k * dt:.3f}", *(f"{x:.6f}" for x in q), f"{grip[k, 0]:.4f}", f"{grip[k, 1]:.4f}"])
-    with atomic_open(args.output) as f:
-        f.write(text.getvalue().encode())
-    print(f"{info['checkpoint']}: seed {args.seed}, {'success' if episode.success else 'failure'} in "
-          f"{episode.steps} steps")
-    print(f"wrote {args.output}: {len(episode.joint_angles)} rows every {dt * 1000:.0f} ms "
-          f"(time s, 14 joint angles rad, grip closure 0-1 per arm)")
-    return 0
-
-
 def add_train_commands(sub) -> None:
-    """Add ``train``, ``eval``, ``play`` and ``export`` to the top-level subparsers."""
+    """Add ``train``, ``eval`` and ``play`` to the top-level subparsers."""
     from dualarm.cli_env import frame_options
 
     train = sub.add_parser("train", help="train DADDPG on the Baxter task (resumable)",
@@ -179,11 +156,3 @@ def add_train_commands(sub) -> None:
     frame_options(play)
     play.add_argument("--fps", type=float, default=12.0)
     play.set_defaults(func=cmd_play)
-
-    export = sub.add_parser("export", help="joint trajectories of both arms as CSV",
-                            description="Run one episode of a run's policy and write time, the 14 "
-                                        "joint angles and the grip of both arms.")
-    run_options(export)
-    export.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.csv")
-    export.add_argument("--seed", type=int, default=0)
-    export.set_defaults(func=cmd_export)

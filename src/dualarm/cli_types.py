@@ -68,6 +68,10 @@ class OutputFile(_ConcretePath):
     """A file the command writes (replacing it if it exists)."""
 
 
+class NewOutput(OutputFile):
+    """A file or folder the command creates; refused if anything exists there already."""
+
+
 class OutputDir(_ConcretePath):
     """A folder the command writes into (created if missing)."""
 
@@ -136,12 +140,15 @@ def check_paths(args: argparse.Namespace, names: dict[str, str] | None = None) -
                 raise InputError(f"{path}: {flag(name)} and {flag(other)} name the same file "
                                  "(nothing was written)")
         if isinstance(path, OutputFile):
-            if real.is_dir():
-                raise InputError(f"{path}: {flag(name)} is a folder; it names a file to write")
             owner = _run_directory_of(real)
             if owner is not None:
                 raise InputError(f"{path}: {flag(name)} is a file of the run directory {owner}; "
                                  "write the output elsewhere (nothing was changed)")
+            if isinstance(path, NewOutput) and (real.exists() or real.is_symlink()):
+                raise InputError(f"{path}: {flag(name)} exists already; name a new file or "
+                                 "folder (nothing was changed)")
+            if real.is_dir():
+                raise InputError(f"{path}: {flag(name)} is a folder; it names a file to write")
         elif real.exists() and not real.is_dir():
             raise InputError(f"{path}: {flag(name)} is an existing file; it names a folder to "
                              "write into")

@@ -387,6 +387,7 @@ class BaxterBatch:
         self.grip_pos = np.zeros((n, 2, 3))         # grip sites after the last step, m
         self.joint_command = np.zeros((n, 2, 7))    # joint mode: servo targets, rad
         self.needs_reset = np.ones(n, dtype=bool)
+        self.start_kind = np.zeros((n, 2), dtype=np.int64)  # each arm's start sub-task (0 reach)
         self._qpos = np.zeros((n, 2, 16))
         self._qvel = np.zeros((n, 2, 8))
 
@@ -434,6 +435,7 @@ class BaxterBatch:
                   else np.zeros(2, dtype=np.int64))
         if starts.any():
             self._start_later(i, starts, r)
+        self.start_kind[i] = starts
 
         self.step_count[i] = 0
         self.success_paid[i] = False
@@ -449,6 +451,10 @@ class BaxterBatch:
         obs = self._observe(state, self._qvel[i:i + 1], np.zeros((1, 2, 3)), self.target_pos[i:i + 1])
         zeros = {k: np.zeros((1, 2)) for k in ("distance", "guide", "goal", "coordinate")}
         return obs[0], _one_info(self._info(state, zeros, np.zeros(1, dtype=bool)), 0)
+
+    def set_start_probs(self, probs) -> None:
+        """Change the start probabilities (reach, grasp, align) of the next resets."""
+        self.start_probs = check_start_probs(probs)
 
     def _start_later(self, i: int, starts: np.ndarray, rng: np.random.Generator) -> None:
         """Put the arms of copy ``i`` whose ``starts`` entry is 1 or 2 at that sub-task.
@@ -589,6 +595,28 @@ class BaxterBatch:
         ended = terminated | truncated
         self.needs_reset |= ended if active is None else ended & active
         return StepResult(obs, reward, terminated, truncated, self._info(state, terms, physics_error))
+
+    # ------------------------------------------------- replaying joint targets
+    def servo_to(self, i: int, joints: np.ndarray, grip: np.ndarray, seconds: float) -> None:
+        """Joint control only: hold copy ``i``'s position servos at ``joints`` (2, 7) rad and
+        its fingers at closure ``grip`` (2,) (0 open .. 1 closed) for ``seconds`` of
+        simulated time (whole physics steps). For replaying a given joint trajectory."""
+        if self.cartesian:
+            raise ValueError("servo_to needs a joint-control task (TaskConfig(control='joint'))")
+        d, ix = self.datas[i], self.ix
+        d.ctrl[ix.arm_ctrl] = np.clip(joints, self._lower, self._upper)
+        d.ctrl[ix.finger_ctrl] = FINGER_OPEN + np.clip(grip, 0, 1)[:, None] * _FINGER_TRAVEL
+        mujoco.mj_step(self.model, d, nstep=max(1, round(seconds / self.model.opt.timestep)))
+        mujoco.mj_kinematics(self.model, d)
+
+    def task_state(self, i: int) -> dict:
+        """Copy ``i``'s sub-task predicates now: ``reached``, ``grasped``, ``aligned`` (2,) and
+        ``success`` (bool), as the task defines them."""
+        d, ix = self.datas[i], self.ix
+        state = self._evaluate(d.site_xpos[ix.grip_site][None], d.qpos[ix.qpos_gather][None],
+                               self.target_pos[i:i + 1])
+        return {"reached": state["reached"][0], "grasped": state["grasped"][0],
+                "aligned": state["aligned"][0], "success": bool(state["success"][0])}
 
     # -------------------------------------------------------------- internals
     def _instability_warnings(self, d: mujoco.MjData) -> int:

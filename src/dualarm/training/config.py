@@ -40,6 +40,11 @@ class TrainConfig:
             its box part of the way to its target (Andrychowicz et al. 2017 started
             pick-and-place episodes with the box in the gripper). Evaluations always start
             from the normal reset. (1, 0, 0): every episode starts normally, as in the paper.
+        start_curriculum: 0 keeps ``start_probs`` fixed. Otherwise a reverse curriculum
+            (``dualarm.training.curriculum``) moves the starts backwards as the task is
+            learned: the sub-task at which most arms start (with the largest of
+            ``start_probs``) begins at align and moves one sub-task earlier once the
+            episodes starting later succeed at this rate (in training, with exploration noise).
         her_share: share of every replay batch whose targets are replaced by the box
             positions reached later in the same episode, rewards recomputed (hindsight
             experience replay, Andrychowicz et al. 2017, "future" goals); 0 turns it off.
@@ -66,6 +71,7 @@ class TrainConfig:
     checkpoint_minutes: float = 2.0
     torch_threads: int = 1
     start_probs: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    start_curriculum: float = 0.0
     reward_heads: bool = False
     her_share: float = 0.0
     demo_episodes: int = 0
@@ -99,6 +105,11 @@ class TrainConfig:
             check_start_probs(self.start_probs)
         except ValueError as exc:
             raise InputError(f"start_probs: {exc}") from None
+        if not 0 <= self.start_curriculum <= 1:
+            raise InputError(f"start_curriculum must be in [0, 1], got {self.start_curriculum}")
+        if self.start_curriculum and not self.uses_start_states:
+            raise InputError("start_curriculum moves the start states: give start_probs other "
+                             "than (1, 0, 0), for example [0.2, 0.2, 0.6]")
         if not 0 <= self.her_share <= 1:
             raise InputError(f"her_share must be in [0, 1], got {self.her_share}")
         if self.her_share and self.algo.n_step != 1:
@@ -109,9 +120,14 @@ class TrainConfig:
     def baxter_only_options(self) -> list[str]:
         """The options set in this config that exist for the Baxter task only (a custom
         PettingZoo environment has no scripted expert, start states, targets or reward terms)."""
-        used = {"start_probs": self.start_probs != (1.0, 0.0, 0.0), "her_share": self.her_share > 0,
+        used = {"start_probs": self.uses_start_states, "her_share": self.her_share > 0,
                 "reward_heads": self.reward_heads, "demo_episodes": self.demo_episodes > 0}
         return [name for name, on in used.items() if on]
+
+    @property
+    def uses_start_states(self) -> bool:
+        """Whether training episodes may start beyond the normal reset."""
+        return tuple(self.start_probs) != (1.0, 0.0, 0.0)
 
     def task_config(self):
         """The resolved ``TaskConfig`` of this run."""

@@ -27,6 +27,7 @@ from dualarm.errors import DualarmError, InputError
 from dualarm.locks import DirectoryLock
 from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
 from dualarm.rl.her import HindsightSampler
+from dualarm.training.curriculum import START_CLASSES, ReverseCurriculum
 from dualarm.rl.nstep import nstep_episode
 from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import TrainConfig
@@ -139,6 +140,10 @@ class Trainer:
             self.demos = record_expert_demonstrations(config, v, self.reward_of,
                                                       self.agent.num_heads)
             self.agent.normalizer.update(self.demos.data["obs"][:len(self.demos)])
+        self.curriculum = None
+        if config.start_curriculum:
+            self.curriculum = ReverseCurriculum(config.start_probs, config.start_curriculum)
+            v.set_start_probs(self.curriculum.probs())
         self.rng = np.random.default_rng([config.seed, 1])
         self.episodes = 0
         self.env_steps = 0
@@ -153,6 +158,8 @@ class Trainer:
         columns += [f"return_{a}" for a in v.agents] + ["return_total", "success"]
         if v.has_subtasks:
             columns += [f"subtask_{a}" for a in v.agents]
+        if config.uses_start_states:      # the sub-task at which each arm began
+            columns += [f"start_{a}" for a in v.agents]
         columns += [f"{t}_{a}" for t in v.term_names for a in v.agents]
         #: Seconds spent since this process started training, by part of a round
         #: (collect_s: the episodes, of which act_s choosing actions and store_s storing
@@ -331,6 +338,10 @@ class Trainer:
 
         r = run_round(v, seeds_for(c.seed, self.episodes, n), act, store)
         t = time.perf_counter()
+        starts = v.starts()[:n] if c.uses_start_states else None
+        if self.curriculum is not None:
+            self.curriculum.record(starts, r.success)
+            v.set_start_probs(self.curriculum.probs())
         for steps in episodes:
             if steps:
                 o, u, rew, o2, term = (np.stack(x) for x in zip(*steps))
@@ -362,6 +373,9 @@ class Trainer:
             if v.has_subtasks:
                 for k, name in enumerate(v.agents):
                     row[f"subtask_{name}"] = int(r.subtask[i, k])
+            if starts is not None:
+                for k, name in enumerate(v.agents):
+                    row[f"start_{name}"] = int(starts[i, k])
             for t in v.term_names:
                 for k, name in enumerate(v.agents):
                     row[f"{t}_{name}"] = f"{r.terms[t][i, k]:.6f}"
@@ -428,6 +442,11 @@ class Trainer:
             for key in losses[0]:
                 w.add_scalar(f"loss/{key}", float(np.mean([x[key] for x in losses])), self.episodes)
         w.add_scalar("train/success_rate_100", float(np.mean(self.recent_success)), self.episodes)
+        if self.curriculum is not None:
+            w.add_scalar("curriculum/frontier", self.curriculum.frontier(), self.episodes)
+            for name, rate in zip(START_CLASSES, self.curriculum.success_rates()):
+                if rate is not None:
+                    w.add_scalar(f"curriculum/success_from_{name}", rate, self.episodes)
 
     def _postfix(self) -> dict:
         post = {"succ100": f"{np.mean(self.recent_success):.2f}",
@@ -451,6 +470,7 @@ class Trainer:
                          "recent_success": list(self.recent_success),
                          "recent_return": list(self.recent_return),
                          "last_eval": self.last_eval},
+            "curriculum": self.curriculum.state_dict() if self.curriculum is not None else None,
         })
 
     def load(self, payload: dict) -> None:
@@ -478,6 +498,9 @@ class Trainer:
             self.recent_success.extend(k["recent_success"])
             self.recent_return.extend(k["recent_return"])
             self.last_eval = k["last_eval"]
+            if self.curriculum is not None:
+                self.curriculum.load_state_dict(payload["curriculum"])
+                self.vec.set_start_probs(self.curriculum.probs())
         except (KeyError, ValueError, RuntimeError, TypeError) as exc:
             raise CheckpointError(f"{where}: incompatible with this run or this version "
                                   f"({type(exc).__name__}: {exc})") from None

@@ -89,6 +89,14 @@ class BaxterVector(VectorEnv):
     def reset(self, i: int, seed: int) -> np.ndarray:
         return self.batch.reset_env(i, seed)[0]
 
+    def starts(self) -> np.ndarray:
+        """Each copy's arms' start sub-tasks at its last reset, (num_envs, 2) (0 reach)."""
+        return self.batch.start_kind.copy()
+
+    def set_start_probs(self, probs) -> None:
+        """Start probabilities (reach, grasp, align) of the next resets."""
+        self.batch.set_start_probs(probs)
+
     def step(self, actions: np.ndarray, active: np.ndarray) -> VectorStep:
         r = self.batch.step_all(actions, active)
         return VectorStep(r.obs, r.reward, r.terminated, r.truncated, r.info["is_success"],
