@@ -40,8 +40,8 @@ def main() -> None:
     args = p.parse_args()
     policy_ok, replay_ok, durations, source, peaks = [], [], [], [], []
     for seed in tqdm(range(args.placements), desc="placements"):
-        env, episode, actions, _ = policy_episode(args.run, args.checkpoint, seed)
-        trajectory = from_episode(episode.joint_angles, actions[:, :, -1], env.config.control_period)
+        env, episode, _ = policy_episode(args.run, args.checkpoint, seed)
+        trajectory = from_episode(episode, env.config.control_period)
         r = retime(trajectory)
         rep = r.report()
         camera = "front" if (seed == 0 and args.strip) else None

@@ -28,22 +28,14 @@ import numpy as np
 
 from dualarm.envs.baxter import BaxterReachGraspAlign
 from dualarm.envs.config import TaskConfig
-from dualarm.envs.expert import ScriptedExpert
-from dualarm.envs.rollout import run_episode
+from dualarm.envs.rollout import make_policy, run_episode
 from dualarm.export.retime import Limits, _MonotonePath, retime
 from dualarm.export.trajectory import from_episode
 
 
 def expert_episode(env, seed):
-    expert, grips = ScriptedExpert(env.config), []
-
-    def policy(obs):
-        a = np.clip(expert(obs), -1, 1)
-        grips.append(a[:, -1])
-        return a
-
-    ep = run_episode(env, policy, seed)
-    return from_episode(ep.joint_angles, np.array(grips), env.config.control_period)
+    episode = run_episode(env, make_policy("expert", env), seed)
+    return from_episode(episode, env.config.control_period)
 
 
 def chord_departure(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:

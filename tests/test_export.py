@@ -10,8 +10,7 @@ import pytest
 from dualarm.cli import main
 from dualarm.envs.baxter import BaxterReachGraspAlign, home_posture
 from dualarm.envs.config import TaskConfig
-from dualarm.envs.expert import ScriptedExpert
-from dualarm.envs.rollout import run_episode
+from dualarm.envs.rollout import make_policy, run_episode
 from dualarm.errors import InputError
 from dualarm.export.formats import (BAXTER_COLUMNS, TOPICS, read_ros2_trajectories,
                                     write_baxter_csv, write_ros2_bag)
@@ -153,16 +152,9 @@ def test_onnx_policy_matches_pytorch_on_1000_observations(tmp_path):
 
 def expert_trajectory(seed: int) -> JointTrajectory:
     env = BaxterReachGraspAlign(TaskConfig(condition="none"))
-    expert, grips = ScriptedExpert(env.config), []
-
-    def policy(obs):
-        action = np.clip(expert(obs), -1, 1)
-        grips.append(action[:, -1])
-        return action
-
-    episode = run_episode(env, policy, seed)
+    episode = run_episode(env, make_policy("expert", env), seed)
     assert episode.success
-    return from_episode(episode.joint_angles, np.array(grips), env.config.control_period)
+    return from_episode(episode, env.config.control_period)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import numpy as np
 
 from dualarm.cli_types import InputPath, NewOutput, OutputFile, positive
 from dualarm.errors import InputError
@@ -30,10 +29,10 @@ def _source_trajectory(args: argparse.Namespace):
     if source.is_dir():
         from dualarm.cli_train import policy_episode
 
-        env, episode, actions, info = policy_episode(source, args.checkpoint, args.seed)
+        env, episode, info = policy_episode(source, args.checkpoint, args.seed)
         print(f"{info['checkpoint']}: seed {args.seed}, "
               f"{'success' if episode.success else 'failure'} in {episode.steps} steps")
-        trajectory = from_episode(episode.joint_angles, actions[:, :, -1], env.config.control_period)
+        trajectory = from_episode(episode, env.config.control_period)
         return trajectory, env.config
     return read_trajectory_csv(source), None
 

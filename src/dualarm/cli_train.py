@@ -6,7 +6,6 @@ import argparse
 import sys
 from pathlib import Path
 
-import numpy as np
 
 from dualarm.cli_types import InputPath, OutputDir, OutputFile, positive_int
 from dualarm.errors import InputError
@@ -75,8 +74,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 def policy_episode(run: Path, checkpoint: str, seed: int, camera: str | None = None,
                    size: tuple[int, int] | None = None):
-    """One episode of a run's deterministic policy from ``reset(seed)``, recording the
-    actions. Returns (env, episode, actions (steps, 2, U) in [-1, 1], checkpoint info)."""
+    """One episode of a run's deterministic policy from ``reset(seed)``.
+    Returns (env, episode, checkpoint info)."""
     from dualarm.envs.baxter import BaxterReachGraspAlign
     from dualarm.envs.rollout import run_episode
     from dualarm.training.policy import load_policy, single_env_policy
@@ -85,17 +84,9 @@ def policy_episode(run: Path, checkpoint: str, seed: int, camera: str | None = N
     env = BaxterReachGraspAlign(config.task_config(), config.load_constraints())
     if size:
         env.render_size = size
-    policy = single_env_policy(agent)
-    actions = []
-
-    def recording(obs):
-        a = policy(obs)
-        actions.append(np.clip(a, -1.0, 1.0))
-        return a
-
-    episode = run_episode(env, recording, seed, camera=camera)
+    episode = run_episode(env, single_env_policy(agent), seed, camera=camera)
     env.close()
-    return env, episode, np.array(actions), info
+    return env, episode, info
 
 
 def cmd_play(args: argparse.Namespace) -> int:
@@ -103,7 +94,7 @@ def cmd_play(args: argparse.Namespace) -> int:
     from dualarm.cli_env import with_end_pause
     from dualarm.envs.rendering import write_video
 
-    env, episode, _, info = policy_episode(args.run, args.checkpoint, args.seed, args.camera,
+    env, episode, info = policy_episode(args.run, args.checkpoint, args.seed, args.camera,
                                            (args.height, args.width))
     frames = with_end_pause(episode.frames, args.fps)
     path = write_video(args.output, frames, fps=args.fps)

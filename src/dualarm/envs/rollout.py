@@ -37,6 +37,8 @@ class Episode:
         returns: (2,) summed rewards of the left and right arm.
         subtasks: (steps, 2) sub-task index of each arm after each step.
         joint_angles: (steps + 1, 14) Baxter joint angles (rad) from the reset on.
+        actions: (steps, 2, action_size) the actions taken, clipped to [-1, 1] as the env
+            applies them.
         frames: rendered RGB frames, if asked for.
     """
 
@@ -46,6 +48,7 @@ class Episode:
     returns: np.ndarray
     subtasks: np.ndarray
     joint_angles: np.ndarray
+    actions: np.ndarray
     frames: list[np.ndarray] = field(default_factory=list)
 
 
@@ -59,9 +62,11 @@ def run_episode(env: BaxterReachGraspAlign, policy: Policy, seed: int,
     obs, _ = env.reset(seed=seed)
     frames = [env.render(camera)] if camera else []
     returns = np.zeros(2)
-    subtasks, joints = [], [env.joint_angles()]
+    subtasks, joints, actions = [], [env.joint_angles()], []
     while True:
-        result = env.step(policy(obs))
+        action = np.clip(policy(obs), -1.0, 1.0)
+        actions.append(action)
+        result = env.step(action)
         obs = result.obs
         returns += result.reward
         subtasks.append(result.info["subtask"].copy())
@@ -71,4 +76,4 @@ def run_episode(env: BaxterReachGraspAlign, policy: Policy, seed: int,
         if result.terminated or result.truncated:
             break
     return Episode(seed, bool(result.info["is_success"]), env.steps, returns,
-                   np.array(subtasks), np.array(joints), frames)
+                   np.array(subtasks), np.array(joints), np.array(actions), frames)

@@ -137,11 +137,13 @@ def write_trajectory_csv(path: str | Path, trajectory: JointTrajectory) -> None:
         f.write(trajectory_csv_text(trajectory).encode())
 
 
-def from_episode(joint_angles: np.ndarray, grip_actions: np.ndarray, dt: float) -> JointTrajectory:
-    """The trajectory of an episode: joint angles (steps + 1, 14) rad after the reset and each
-    step, grip actions (steps, 2) in [-1, 1] (the fingers are open at the reset), ``dt`` s per step."""
-    grip = np.vstack([np.zeros((1, 2)), 0.5 * (np.clip(grip_actions, -1, 1) + 1.0)])
-    time = np.arange(len(joint_angles)) * dt
+def from_episode(episode, dt: float) -> JointTrajectory:
+    """The trajectory of an episode (``dualarm.envs.rollout.Episode``): its joint angles after
+    the reset and after each step, its grip actions as closure (the fingers are open at the
+    reset), ``dt`` s per step. The simulator's soft joint limits let a joint pass its limit
+    by a hair under load; such angles are clipped onto the limit."""
     if not math.isfinite(dt) or dt <= 0:
         raise ValueError(f"the step time must be positive, got {dt}")
-    return JointTrajectory(time, np.asarray(joint_angles, float), grip)
+    joints = np.clip(np.asarray(episode.joint_angles, float), POSITION_LIMITS[:, 0], POSITION_LIMITS[:, 1])
+    grip = np.vstack([np.zeros((1, 2)), 0.5 * (np.clip(episode.actions[:, :, -1], -1, 1) + 1.0)])
+    return JointTrajectory(np.arange(len(joints)) * dt, joints, grip)
