@@ -96,3 +96,33 @@ def test_future_goals_come_from_the_same_episode_later():
         episode_end = next(e for e in ends if t < e)
         later = [u for u in range(t, episode_end) if np.array_equal(nxt[u, :, 3:6], goal)]
         assert later, f"goal of transition {t} is not from its own episode's future"
+
+
+def test_reach_relabelling_with_the_real_boxes_changes_nothing_and_with_the_grips_pays_rc():
+    """The reach task: relabelling with the boxes where they are leaves rewards and ends as the
+    environment gave them; with the boxes moved to where the grip sites were at step k, both
+    arms are within reach there: rc is paid and the episode ends at k."""
+    from dualarm.envs.baxter import ReachRelabeller
+
+    task = TaskConfig(success_at="reach", max_episode_steps=30)
+    o, a, r, h, o2, term, env = expert_episode(2, task)
+    assert term
+    relabeller = ReachRelabeller(task, False)
+    batch = {"obs": o.copy(), "next_obs": o2.copy(), "rew": r.astype(np.float64).copy(),
+             "done": (np.arange(len(o)) == len(o) - 1).astype(float)}
+    rows = np.arange(len(o))
+    relabeller.relabel(batch, rows, o2[:, :, 3:6])          # object_pos: where the boxes are
+    np.testing.assert_allclose(batch["rew"], r, atol=1e-6)
+    np.testing.assert_array_equal(batch["done"], np.arange(len(o)) == len(o) - 1)
+
+    k = len(o) // 2
+    grips = relabeller.achieved(o2[k:k + 1])[0]
+    batch = {"obs": o.copy(), "next_obs": o2.copy(), "rew": r.astype(np.float64).copy(),
+             "done": np.zeros(len(o))}
+    relabeller.relabel(batch, rows, np.repeat(grips[None], len(o), 0))
+    assert batch["done"][k] == 1.0 and (batch["rew"][k] > task.coordinate_bonus - 1).all()
+    np.testing.assert_allclose(batch["obs"][:, :, 3:6], np.broadcast_to(grips, (len(o), 2, 3)))
+    np.testing.assert_allclose(batch["next_obs"][:, :, 6:9],
+                               grips[None] - o2[:, :, :3], atol=1e-12)      # rel = box - grip
+    with pytest.raises(ValueError, match="reach task"):
+        ReachRelabeller(TaskConfig(), False)

@@ -178,33 +178,23 @@ def test_generic_env_adapter_checks_the_env():
     assert obs.shape == (2, 6) and np.all(obs[0, 4:] == 0)      # left padded to 6
 
 
-def test_daddpg_learns_to_bring_both_baxter_grippers_to_their_boxes(tmp_path):
-    """Learning on the real task: within 240 episodes of the reach sub-task (about 1 minute),
-    the best evaluated policy (the one `dualarm eval` loads; evaluations every 40 episodes)
-    has a distance cost on the fixed evaluation episodes at least a quarter below that of
-    the untrained policy. Measured on the 2-vCPU VM: -14.1 untrained, -7.6 at episode 80,
-    then -8.5, -8.8, -9.1, -11.3 at 240: the plain learner degrades as it trains
-    (docs/learning-runs.md, round 1), so the last policy alone would miss the quarter.
-    (Reaching within 2 cm with both arms at 80% is not learned in a CI budget yet.)"""
-    from dualarm.rl import DADDPG
-    from dualarm.training.evaluation import evaluate
-    from dualarm.training.loop import make_vector_env
-    from dualarm.training.policy import load_policy
-
-    algo = DADDPGConfig(hidden=(128, 128), updates_per_step=1.0, warmup_steps=1000,
-                        action_l2=0.0, gamma=0.95, actor_lr=3e-4, critic_lr=3e-4,
-                        noise_std=0.1, random_eps=0.0, buffer_size=20_000)
-    config = TrainConfig(condition="none", episodes=240, num_envs=8, eval_every=40,
-                         eval_episodes=16, algo=algo,
-                         task={"success_at": "reach", "max_episode_steps": 30,
-                               "coordinate_bonus": 40.0}, seed=0)
+def test_daddpg_learns_the_baxter_reach_to_80_percent_without_demonstrations(tmp_path):
+    """The reach sub-task (both grip sites within 2 cm of their boxes at the same step, the
+    paper's rc = 4000) learned by DADDPG alone, no demonstrations: rewards scaled by 1/rc
+    inside the learner, targets clipped to [-1, 1], and hindsight boxes (each arm's box
+    relabelled with where its grip site went later in the episode, HER's "future" goals,
+    share 0.8). Success on the 32 fixed evaluation placements, deterministic policy, best
+    evaluation (what `dualarm eval` loads). Measured with seed 0 (docs/learning-runs.md,
+    round 5, R2): 0 until episode 720, then 0.03, 0.09, 0.16, 0.31, 0.53, 0.88 at 1,120;
+    about 3 minutes on one core."""
+    algo = DADDPGConfig(hidden=(128, 128), reward_scale=1 / 4000, q_clip=1.0, action_l2=0.02)
+    config = TrainConfig(condition="none", episodes=1120, num_envs=16, eval_every=80,
+                         eval_episodes=32, her_share=0.8, algo=algo, seed=0,
+                         task={"success_at": "reach", "max_episode_steps": 30})
     train(config, tmp_path / "run", progress=False)
-    config, trained, _ = load_policy(tmp_path / "run", "best")
-    vec = make_vector_env(config, 8)
-    untrained = DADDPG(config.algo, vec.obs_sizes, vec.act_sizes, seed=0)
-    before = evaluate(lambda o: untrained.act(o), vec, 16)
-    after = evaluate(lambda o: trained.act(o), vec, 16)
-    assert after.mean_return > 0.75 * before.mean_return, (before.mean_return, after.mean_return)
+    success = [float(r["success_rate"]) for r in rows(tmp_path / "run" / "eval.csv")]
+    assert success[0] == 0.0                                  # it starts unable
+    assert max(success) >= 0.8, success
 
 
 def test_daddpg_with_demonstrations_learns_the_baxter_reach_to_80_percent(tmp_path):

@@ -213,6 +213,64 @@ class TargetRelabeller:
         batch["done"][rows] = new_success
 
 
+class ReachRelabeller:
+    """Hindsight goals for the reach task (``success_at="reach"``): each arm's box replaced by
+    where its grip site was later in the episode, as HER does on FetchReach.
+
+    ``achieved(next_obs)`` gives the grip sites (n, 2, 3); ``relabel`` rewrites a batch's rows
+    as if the boxes had stood there: ``object_pos`` and ``object_rel_pos`` in both arms'
+    observations, the distance term (to the box, Eq. 17), rg1 for an arm that comes within
+    ``reach_threshold`` at this step, the coordination bonus and the end of the episode when
+    both do (Eq. 18). rg1 is paid at the step an arm comes within reach, where the environment
+    pays it the first time only: the two differ for an arm that leaves and comes back. The
+    guide term does not depend on the boxes. Whole rewards (n, 2) only.
+    """
+
+    def __init__(self, config: TaskConfig, joint_angles: bool):
+        if config.success_at != "reach":
+            raise ValueError("reach goals are relabelled for the reach task (success_at 'reach')")
+        if config.reach_funnel > 0 or config.goal != "subtask":
+            raise ValueError("reach relabelling needs the distance term's goal at the box itself "
+                             "(goal 'subtask', reach_funnel 0)")
+        self.config = config
+        self.layout = observation_layout(joint_angles)
+
+    def achieved(self, next_obs: np.ndarray) -> np.ndarray:
+        """Grip-site positions (n, 2, 3) m in observations (n, 2, O)."""
+        return next_obs[..., self.layout["grip_pos"]]
+
+    def _reach(self, obs: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(distance grip site to box (n, 2) m, within reach (n, 2)) for boxes at ``boxes``."""
+        off = boxes - obs[..., self.layout["grip_pos"]]
+        distance = np.sqrt((off * off).sum(-1))
+        return distance, distance < self.config.reach_threshold
+
+    def _pay(self, obs: np.ndarray, nxt: np.ndarray, boxes_before: np.ndarray,
+             boxes_after: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(distance + rg1 + rc per arm (n, 2), success (n,)) of a step for given boxes."""
+        c = self.config
+        _, before = self._reach(obs, boxes_before)
+        distance, after = self._reach(nxt, boxes_after)
+        success = after.all(axis=-1)
+        reward = -distance + c.reach_bonus * (after & ~before) + c.coordinate_bonus * success[:, None]
+        return reward, success
+
+    def relabel(self, batch: dict, rows: np.ndarray, goals: np.ndarray) -> None:
+        """Rewrite ``batch`` rows ``rows`` (obs, next_obs, rew, done) for boxes at ``goals``
+        (len(rows), 2, 3)."""
+        if batch["rew"].ndim != 2:
+            raise ValueError("reach relabelling rewrites whole rewards, not reward heads")
+        L = self.layout
+        obs, nxt = batch["obs"][rows], batch["next_obs"][rows]
+        old, _ = self._pay(obs, nxt, obs[..., L["object_pos"]], nxt[..., L["object_pos"]])
+        new, success = self._pay(obs, nxt, goals, goals)
+        for key, o in (("obs", obs), ("next_obs", nxt)):
+            batch[key][rows, :, L["object_pos"]] = goals
+            batch[key][rows, :, L["object_rel_pos"]] = goals - o[..., L["grip_pos"]]
+        batch["rew"][rows] += new - old
+        batch["done"][rows] = success & self.config.terminate_on_success
+
+
 @dataclass
 class StepResult:
     """One environment step for both arms (rows left, right).

@@ -45,9 +45,11 @@ class TrainConfig:
             learned: the sub-task at which most arms start (with the largest of
             ``start_probs``) begins at align and moves one sub-task earlier once the
             episodes starting later succeed at this rate (in training, with exploration noise).
-        her_share: share of every replay batch whose targets are replaced by the box
-            positions reached later in the same episode, rewards recomputed (hindsight
-            experience replay, Andrychowicz et al. 2017, "future" goals); 0 turns it off.
+        her_share: share of every replay batch whose goals are replaced by what the arms
+            achieved later in the same episode, rewards recomputed (hindsight experience
+            replay, Andrychowicz et al. 2017, "future" goals): the targets by where the
+            boxes went, or, in the reach task (``task.success_at: reach``), the boxes by
+            where the grip sites went. 0 turns it off.
         reward_heads: split each agent's reward into three components, each learned by its
             own critic head at its own scale (``DADDPG``'s ``head_scales``): the per-step
             terms (distance + guide) times ``algo.reward_scale``, the goal bonuses divided

@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from dualarm.atomic import atomic_copy
-from dualarm.envs.baxter import HEAD_TERMS, TargetRelabeller
+from dualarm.envs.baxter import HEAD_TERMS, ReachRelabeller, TargetRelabeller
 from dualarm.errors import DualarmError, InputError
 from dualarm.locks import DirectoryLock
 from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
@@ -130,7 +130,8 @@ class Trainer:
                                    self.agent.num_heads)
         self.sampler = self.buffer
         if config.her_share > 0:
-            relabeller = TargetRelabeller(task, task.observes_joint_angles)
+            goals = ReachRelabeller if task.success_at == "reach" else TargetRelabeller
+            relabeller = goals(task, task.observes_joint_angles)
             self.sampler = HindsightSampler(self.buffer, relabeller.achieved, relabeller.relabel,
                                             config.her_share)
         # Demonstrations are recorded again on resume (the expert and the physics are
