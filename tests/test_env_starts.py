@@ -94,3 +94,31 @@ def test_only_training_copies_use_the_start_distribution():
     evaluation = make_vector_env(config, 1)
     assert (train.batch.reset_env(0, 1)[1]["subtask"] == 2).all()
     assert (evaluation.batch.reset_env(0, 1)[1]["subtask"] == 0).all()
+
+
+def test_approach_starts_put_the_open_gripper_between_home_and_above_the_box():
+    """With approach_starts, reach starts spread along the way to the box (evaluation copies
+    and arms at later sub-tasks are unchanged)."""
+    from dualarm.envs.baxter import APPROACH_HEIGHT
+
+    task = TaskConfig()
+    home = BaxterBatch(task, num_envs=1, start_probs=(1.0, 0.0, 0.0))
+    spread = BaxterBatch(task, num_envs=1, start_probs=(1.0 - 1e-9, 1e-9, 0.0), approach_starts=True)
+    fractions = []
+    for seed in range(12):
+        o_home = home.reset_env(0, seed)[0]
+        o = spread.reset_env(0, seed)[0]
+        assert (spread.start_kind[0] == 0).all()
+        start, box = o_home[:, :3], o[:, 3:6]
+        above = box + [0.0, 0.0, APPROACH_HEIGHT]
+        for arm in range(2):
+            way = above[arm] - start[arm]
+            u = float((o[arm, :3] - start[arm]) @ way / (way @ way))
+            off_line = np.linalg.norm(o[arm, :3] - (start[arm] + u * way))
+            assert -0.01 <= u <= 1.01 and off_line < 0.01, (seed, arm, u, off_line)
+            fractions.append(u)
+        from dualarm.envs.baxter import closed_gap, finger_gap
+        assert (finger_gap(o[:, 9:11]) > closed_gap(task) + 0.01).all()     # fingers open
+    assert min(fractions) < 0.3 and max(fractions) > 0.7          # spread along the way
+    with pytest.raises(Exception, match="approach_starts"):
+        TrainConfig(approach_starts=True)

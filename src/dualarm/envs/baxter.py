@@ -40,6 +40,8 @@ _FINGER_TRAVEL = FINGER_CLOSED - FINGER_OPEN
 #: Finger-pad gap (m) at finger joints (0, 0): the gap is this + l - r.
 _GAP_AT_ZERO = 2 * (0.01 + 0.01725 - 0.0047 - 0.0035)
 _UP = np.array([0.0, 0.0, 1.0])
+#: Height (m) above its box at which the longest approach start ends (``approach_starts``).
+APPROACH_HEIGHT = 0.05
 
 
 def finger_gap(fingers: np.ndarray) -> np.ndarray:
@@ -387,6 +389,10 @@ class BaxterBatch:
             episode at that sub-task (drawn per arm; see ``reset_env``). None: every episode
             starts at reach, the task's normal reset. Training curricula only; evaluations
             use the normal reset.
+        approach_starts: with ``start_probs``, an arm that starts at reach begins a uniform
+            fraction of the way from its home position to ``APPROACH_HEIGHT`` above its box
+            (gripper down, fingers open) instead of at home: starts that cover the approach,
+            so that the value of being at the box can spread back along it.
 
     Actions are (num_envs, 2, 4) in cartesian mode (dx, dy, dz, grip) and (num_envs, 2, 8)
     in joint mode (7 joint deltas, grip), arms in the order left, right, each value in
@@ -395,11 +401,13 @@ class BaxterBatch:
 
     def __init__(self, config: TaskConfig = TaskConfig(), constraints: ConstraintSet | None = None,
                  num_envs: int = 1, render_size: tuple[int, int] = (480, 640),
-                 start_probs: tuple[float, float, float] | None = None):
+                 start_probs: tuple[float, float, float] | None = None,
+                 approach_starts: bool = False):
         if num_envs < 1:
             raise ValueError(f"num_envs must be at least 1, got {num_envs}")
         self.config = config
         self.start_probs = check_start_probs(start_probs)
+        self.approach_starts = approach_starts
         if config.condition == "none":
             if constraints is not None:
                 raise ValueError("condition 'none' has no guide term: pass constraints=None")
@@ -491,7 +499,7 @@ class BaxterBatch:
         # Drawn after the placement, so a seed places boxes and targets the same either way.
         starts = (r.choice(3, size=2, p=self.start_probs) if self.start_probs is not None
                   else np.zeros(2, dtype=np.int64))
-        if starts.any():
+        if starts.any() or (self.approach_starts and self.start_probs is not None):
             self._start_later(i, starts, r)
         self.start_kind[i] = starts
 
@@ -522,12 +530,18 @@ class BaxterBatch:
         its target (at least ``lift_height`` + 1 cm above its resting height), between
         fingers closing on it (reach and grasp done). The arm's joints come from inverse
         kinematics with the gripper pointing down; a short settle (two control periods)
-        lets the fingers take hold. Arms at reach (0) stay at home.
+        lets the fingers take hold. Arms at reach (0) stay at home, or with
+        ``approach_starts`` begin a uniform fraction of the way to above their box.
         """
         c, m, d, ix = self.config, self.model, self.datas[i], self.ix
         grip = d.site_xpos[ix.grip_site].copy()               # (2, 3) home grip sites
         box = self.box_start_pos[i].copy()
-        for arm in np.flatnonzero(starts):
+        for arm in range(2):
+            if starts[arm] == 0:
+                if self.approach_starts:
+                    above = box[arm] + APPROACH_HEIGHT * _UP
+                    grip[arm] = grip[arm] + rng.uniform() * (above - grip[arm])
+                continue
             if starts[arm] == 2:
                 p = box[arm] + rng.uniform() * (self.target_pos[i, arm] - box[arm])
                 p[2] = max(p[2], self._rule.lifted_z + 0.01)

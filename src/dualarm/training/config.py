@@ -45,6 +45,9 @@ class TrainConfig:
             learned: the sub-task at which most arms start (with the largest of
             ``start_probs``) begins at align and moves one sub-task earlier once the
             episodes starting later succeed at this rate (in training, with exploration noise).
+        approach_starts: an arm that starts a training episode at reach begins a uniform
+            fraction of the way from home to just above its box instead of at home (needs
+            ``start_probs``): training starts that cover the approach to the box.
         her_share: share of every replay batch whose goals are replaced by what the arms
             achieved later in the same episode, rewards recomputed (hindsight experience
             replay, Andrychowicz et al. 2017, "future" goals): the targets by where the
@@ -74,6 +77,7 @@ class TrainConfig:
     torch_threads: int = 1
     start_probs: tuple[float, float, float] = (1.0, 0.0, 0.0)
     start_curriculum: float = 0.0
+    approach_starts: bool = False
     reward_heads: bool = False
     her_share: float = 0.0
     demo_episodes: int = 0
@@ -109,6 +113,9 @@ class TrainConfig:
             raise InputError(f"start_probs: {exc}") from None
         if not 0 <= self.start_curriculum <= 1:
             raise InputError(f"start_curriculum must be in [0, 1], got {self.start_curriculum}")
+        if self.approach_starts and not self.uses_start_states:
+            raise InputError("approach_starts moves the reach starts of a start distribution: "
+                             "give start_probs other than (1, 0, 0), for example [0.2, 0.2, 0.6]")
         if self.start_curriculum and not self.uses_start_states:
             raise InputError("start_curriculum moves the start states: give start_probs other "
                              "than (1, 0, 0), for example [0.2, 0.2, 0.6]")

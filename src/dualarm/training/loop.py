@@ -81,7 +81,8 @@ def make_vector_env(config: TrainConfig, num_envs: int,
     if constraints is None:
         constraints = config.load_constraints()
     return BaxterVector(config.task_config(), constraints, num_envs,
-                        config.start_probs if training else None)
+                        config.start_probs if training else None,
+                        approach_starts=training and config.approach_starts)
 
 
 class Trainer:

@@ -77,10 +77,12 @@ class BaxterVector(VectorEnv):
     term_names = ("distance", "guide", "goal", "coordinate")
     has_subtasks = True
 
-    def __init__(self, config, constraints=None, num_envs: int = 1, start_probs=None):
+    def __init__(self, config, constraints=None, num_envs: int = 1, start_probs=None,
+                 approach_starts: bool = False):
         from dualarm.envs.baxter import BaxterBatch
 
-        self.batch = BaxterBatch(config, constraints, num_envs, start_probs=start_probs)
+        self.batch = BaxterBatch(config, constraints, num_envs, start_probs=start_probs,
+                                 approach_starts=approach_starts)
         self.num_envs = num_envs
         self.agents = ("left", "right")
         self.obs_sizes = (self.batch.obs_size,) * 2
