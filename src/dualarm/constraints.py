@@ -101,7 +101,7 @@ def _bounds_array(value: Any, where: str, source: str | None = None) -> np.ndarr
     bad = np.flatnonzero(~np.isfinite(arr))
     if bad.size:
         i = int(bad[0])
-        raise InputError(f"{where}[{i}] ({JOINT_COLUMNS[i]}): expected a finite number, got {arr[i]!r}",
+        raise InputError(f"{where}[{i}] ({JOINT_COLUMNS[i]}): expected a finite number, got {float(arr[i])!r}",
                          source=source)
     return _readonly(arr)
 
@@ -136,8 +136,8 @@ def _check_segment(subtasks: Any, lower: Any, upper: Any, where: str,
     bad = np.flatnonzero(lo > up)
     if bad.size:
         i = int(bad[0])
-        raise InputError(f"{where}lower[{i}] ({JOINT_COLUMNS[i]}) = {lo[i]!r} is above "
-                         f"{where}upper[{i}] = {up[i]!r}", source=source)
+        raise InputError(f"{where}lower[{i}] ({JOINT_COLUMNS[i]}) = {float(lo[i])!r} is above "
+                         f"{where}upper[{i}] = {float(up[i])!r}", source=source)
     return names, lo, up
 
 
@@ -592,7 +592,7 @@ def _clip_to_limits(lo: np.ndarray, up: np.ndarray, where: str,
     changed = []
     for key, old, new in (("lower", lo, lo_c), ("upper", up, up_c)):
         for i in np.flatnonzero(old != new):
-            changed.append(f"{key}[{i}] ({JOINT_COLUMNS[i]}) {old[i]!r} -> {new[i]!r}")
+            changed.append(f"{key}[{i}] ({JOINT_COLUMNS[i]}) {float(old[i])!r} -> {float(new[i])!r}")
     if changed:
         prefix = f"{source}: " if source is not None else ""
         warnings.warn(f"{prefix}{where}: bounds outside Baxter's joint limits clipped: {'; '.join(changed)}",

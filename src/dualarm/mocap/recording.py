@@ -87,7 +87,7 @@ def validate_recording(rec: Recording) -> None:
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
         i = int(bad[0]) + 1
-        raise InputError(f"time is not strictly increasing ({t[i - 1]!r} then {t[i]!r})",
+        raise InputError(f"time is not strictly increasing ({float(t[i - 1])!r} then {float(t[i])!r})",
                          source=src, row=i + 1, column="time")
     missing = [s for s in SENSORS if s not in rec.quat]
     if missing:
