@@ -49,6 +49,11 @@ def finger_gap(fingers: np.ndarray) -> np.ndarray:
     return _GAP_AT_ZERO + fingers[..., 1] - fingers[..., 0]
 
 
+def finger_targets(closure: np.ndarray) -> np.ndarray:
+    """Finger joint targets (..., 2) ordered (r, l) for grip closure (...,): 0 open .. 1 closed."""
+    return FINGER_OPEN + np.asarray(closure)[..., None] * _FINGER_TRAVEL
+
+
 def closed_gap(config: TaskConfig) -> float:
     """Largest finger gap (m) at which the fingers count as closed on a box."""
     return 2 * config.scene.box_half_size + config.grasp_gap_margin
@@ -621,7 +626,7 @@ class BaxterBatch:
         a = self.check_actions(actions)
         c, m, ix = self.config, self.model, self.ix
         previous_grip = self.grip_pos
-        fingers = FINGER_OPEN + (0.5 * (a[..., -1:] + 1.0)) * _FINGER_TRAVEL        # (n, 2, 2)
+        fingers = finger_targets(0.5 * (a[..., -1] + 1.0))                        # (n, 2, 2)
         if self.cartesian:
             commands = np.minimum(np.maximum(previous_grip + c.max_cartesian_step * a[..., :3],
                                              self._workspace_low), self._workspace_high)
@@ -677,14 +682,14 @@ class BaxterBatch:
             raise ValueError("servo_to needs a joint-control task (TaskConfig(control='joint'))")
         d, ix = self.datas[i], self.ix
         d.ctrl[ix.arm_ctrl] = np.clip(joints, self._lower, self._upper)
-        d.ctrl[ix.finger_ctrl] = FINGER_OPEN + np.clip(grip, 0, 1)[:, None] * _FINGER_TRAVEL
+        d.ctrl[ix.finger_ctrl] = finger_targets(np.clip(grip, 0, 1))
         mujoco.mj_step(self.model, d, nstep=max(1, round(seconds / self.model.opt.timestep)))
-        mujoco.mj_kinematics(self.model, d)
 
     def task_state(self, i: int) -> dict:
         """Copy ``i``'s sub-task predicates now: ``reached``, ``grasped``, ``aligned`` (2,) and
         ``success`` (bool), as the task defines them."""
         d, ix = self.datas[i], self.ix
+        mujoco.mj_kinematics(self.model, d)      # site positions of the current state
         state = self._evaluate(d.site_xpos[ix.grip_site][None], d.qpos[ix.qpos_gather][None],
                                self.target_pos[i:i + 1])
         return {"reached": state["reached"][0], "grasped": state["grasped"][0],

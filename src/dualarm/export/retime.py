@@ -121,8 +121,7 @@ class Retimed:
     waypoint_time: np.ndarray
     duration: float
     limits: Limits
-    _path: _MonotonePath
-    _traj: object        # toppra's parameterised trajectory (s -> t), evaluated through _path
+    _traj: object        # toppra's parameterised trajectory: t -> the 17 path coordinates
 
     def sample(self, rate_hz: float) -> "Samples":
         """Positions, velocities and accelerations every 1/rate_hz s from 0 to the end (the
@@ -220,7 +219,7 @@ def retime(trajectory: JointTrajectory, limits: Limits | None = None, never_fast
         grid_time = np.concatenate([[0.0], np.cumsum(2 * np.diff(data.gridpoints)
                                                      / np.maximum(sd[:-1] + sd[1:], 1e-12))])
         result = Retimed(trajectory, np.interp(time, data.gridpoints, grid_time),
-                         float(traj.duration), limits, path, traj)
+                         float(traj.duration), limits, traj)
         check = result.sample(1000.0)
         excess = max(float((np.abs(check.velocity) / limits.velocity).max()),
                      float((np.abs(check.acceleration) / limits.acceleration).max()))

@@ -113,12 +113,10 @@ class TrainConfig:
             raise InputError(f"start_probs: {exc}") from None
         if not 0 <= self.start_curriculum <= 1:
             raise InputError(f"start_curriculum must be in [0, 1], got {self.start_curriculum}")
-        if self.approach_starts and not self.uses_start_states:
-            raise InputError("approach_starts moves the reach starts of a start distribution: "
-                             "give start_probs other than (1, 0, 0), for example [0.2, 0.2, 0.6]")
-        if self.start_curriculum and not self.uses_start_states:
-            raise InputError("start_curriculum moves the start states: give start_probs other "
-                             "than (1, 0, 0), for example [0.2, 0.2, 0.6]")
+        for name in ("start_curriculum", "approach_starts"):
+            if getattr(self, name) and not self.uses_start_states:
+                raise InputError(f"{name} moves the start states: give start_probs other "
+                                 "than (1, 0, 0), for example [0.2, 0.2, 0.6]")
         if not 0 <= self.her_share <= 1:
             raise InputError(f"her_share must be in [0, 1], got {self.her_share}")
         if self.her_share and self.algo.n_step != 1:

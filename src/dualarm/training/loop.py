@@ -27,26 +27,16 @@ from dualarm.errors import DualarmError, InputError
 from dualarm.locks import DirectoryLock
 from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
 from dualarm.rl.her import HindsightSampler
-from dualarm.training.curriculum import START_CLASSES, ReverseCurriculum
 from dualarm.rl.nstep import nstep_episode
 from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import TrainConfig
+from dualarm.training.curriculum import START_CLASSES, ReverseCurriculum
 from dualarm.training.demonstrations import record_expert_demonstrations
 from dualarm.training.evaluation import evaluate
 from dualarm.training.rounds import run_round
-from dualarm.training.run_dir import (
-    CheckpointError,
-    CsvLog,
-    RunPaths,
-    load_checkpoint,
-    save_checkpoint,
-)
-from dualarm.training.vector import (
-    BaxterVector,
-    ParallelEnvVector,
-    VectorEnv,
-    seeds_for,
-)
+from dualarm.training.run_dir import (CheckpointError, CsvLog, RunPaths, load_checkpoint,
+                                      save_checkpoint)
+from dualarm.training.vector import BaxterVector, ParallelEnvVector, VectorEnv, seeds_for
 
 EVAL_COLUMNS = ["episode", "env_steps", "wall_time_s", "success_rate", "return_mean",
                 "steps_mean"]
@@ -145,7 +135,6 @@ class Trainer:
         self.curriculum = None
         if config.start_curriculum:
             self.curriculum = ReverseCurriculum(config.start_probs, config.start_curriculum)
-            v.set_start_probs(self.curriculum.probs())
         self.rng = np.random.default_rng([config.seed, 1])
         self.episodes = 0
         self.env_steps = 0
@@ -306,6 +295,8 @@ class Trainer:
         c, v, agent, a = self.config, self.vec, self.agent, self.config.algo
         n = min(v.num_envs, c.episodes - self.episodes)
         agent.noise.reset(np.arange(v.num_envs) < n)
+        if self.curriculum is not None:      # this round's starts, from the episodes so far
+            v.set_start_probs(self.curriculum.probs())
         mask = agent.action_mask[:, 0].numpy()
         seen = []
 
@@ -343,7 +334,6 @@ class Trainer:
         starts = v.starts()[:n] if c.uses_start_states else None
         if self.curriculum is not None:
             self.curriculum.record(starts, r.success)
-            v.set_start_probs(self.curriculum.probs())
         for steps in episodes:
             if steps:
                 o, u, rew, o2, term = (np.stack(x) for x in zip(*steps))
@@ -502,7 +492,6 @@ class Trainer:
             self.last_eval = k["last_eval"]
             if self.curriculum is not None:
                 self.curriculum.load_state_dict(payload["curriculum"])
-                self.vec.set_start_probs(self.curriculum.probs())
         except (KeyError, ValueError, RuntimeError, TypeError) as exc:
             raise CheckpointError(f"{where}: incompatible with this run or this version "
                                   f"({type(exc).__name__}: {exc})") from None
