@@ -133,6 +133,34 @@ def test_actor_gradient_ascends_the_critic():
     assert (q_of_policy() > before).all()
 
 
+def test_free_grip_leaves_each_agents_last_action_out_of_the_penalty():
+    a = torch.rand(2, 8, 3) * 2 - 1
+    a[0, :, 2] = 0.0                                   # agent 0 has 2 actions: its grip is a[0, :, 1]
+    moved = a.clone()
+    moved[0, :, 1] = -moved[0, :, 1] * 0.5 + 0.3       # change both agents' grips
+    moved[1, :, 2] = 0.9
+    free, penalised = small_agent(action_l2=2.0, free_grip=True), small_agent(action_l2=2.0)
+    torch.testing.assert_close(free.action_penalty(moved), free.action_penalty(a))
+    assert (penalised.action_penalty(moved) != penalised.action_penalty(a)).all()
+    motion = a.clone()
+    motion[:, :, 0] = 0.7                              # the motion stays penalised
+    assert (free.action_penalty(motion) != free.action_penalty(a)).all()
+
+
+def test_layer_norm_critics_ignore_the_scale_of_their_hidden_pre_activations():
+    net = StackedMLP(2, 4, 1, (8, 8), generator=torch.Generator().manual_seed(0), layer_norm=True)
+    plain = StackedMLP(2, 4, 1, (8, 8), generator=torch.Generator().manual_seed(0))
+    x = torch.randn(2, 10, 4)
+    y, y_plain = net(x), plain(x)
+    with torch.no_grad():                              # scale the first layer's output by 10
+        for model in (net, plain):
+            model.hidden[0].weight.mul_(10.0)
+            model.hidden[0].bias.mul_(10.0)
+    torch.testing.assert_close(net(x), y)
+    assert not torch.allclose(plain(x), y_plain)
+    assert DADDPG(DADDPGConfig(hidden=(16,), critic_layer_norm=True), OBS, ACT).critic.norms is not None
+
+
 def test_actions_masked_and_bounded():
     agent = small_agent()
     obs = np.random.default_rng(0).normal(size=(6, 2, 7))

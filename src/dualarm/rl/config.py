@@ -45,6 +45,11 @@ class DADDPGConfig:
     action_l2: float = 0.1
     """Weight of the mean squared action in the actor loss (Plappert: 1.0, made for returns of
     -50..0; with this task's distance rewards 1.0 kept the arms nearly still)."""
+    free_grip: bool = False
+    """``action_l2`` leaves each agent's last action component (the grip command in both of
+    the Baxter task's control modes) unpenalised. Penalised, the learned grip squeezes at a
+    third of its range and the box slides down the fingers out of the grasp tolerance while
+    it is lifted (docs/learning-runs.md, round 6)."""
     obs_clip: float = 5.0
     """Normalised observations are clipped to +-obs_clip (Plappert: 5)."""
     grad_clip: float = 10.0
@@ -57,6 +62,10 @@ class DADDPGConfig:
     """Two critics per agent, targets from their minimum (TD3's fix of over-estimation)."""
     target_noise: float = 0.0
     """Std of clipped noise on the target actions of Eq. 13 (TD3's smoothing; 0 = off)."""
+    critic_layer_norm: bool = False
+    """Layer normalisation in every hidden layer of the critics (Ba et al. 2016): bounds the
+    values a critic extrapolates to off the data, which an actor otherwise saturates towards
+    (Ball et al. 2023, RLPD). Off by default (docs/learning-runs.md, round 6)."""
     n_step: int = 1
     """Rewards summed over up to n steps before bootstrapping (y = sum_k gamma^k r_k +
     gamma^n Q'); 1 is Eq. 13 as printed. Larger n carries rare bonuses back faster."""

@@ -81,9 +81,11 @@ class DADDPG:
         self.critics_per_agent = 2 if c.twin_critics else 1
         k = a * self.critics_per_agent
         self.actor = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True, g, final_scale=0.1)
-        self.critic = StackedMLP(k, state_size + self.act_size, h, c.hidden, False, g, final_scale=0.1)
+        self.critic = StackedMLP(k, state_size + self.act_size, h, c.hidden, False, g, final_scale=0.1,
+                                 layer_norm=c.critic_layer_norm)
         self.actor_target = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True)
-        self.critic_target = StackedMLP(k, state_size + self.act_size, h, c.hidden)
+        self.critic_target = StackedMLP(k, state_size + self.act_size, h, c.hidden,
+                                        layer_norm=c.critic_layer_norm)
         self.actor_target.load_state_dict(self.actor.state_dict())
         self.critic_target.load_state_dict(self.critic.state_dict())
         for p in (*self.actor_target.parameters(), *self.critic_target.parameters()):
@@ -94,10 +96,20 @@ class DADDPG:
         self.action_mask = torch.zeros(a, 1, self.act_size)
         for i, n in enumerate(act_sizes):
             self.action_mask[i, :, :n] = 1.0
+        # the components action_l2 penalises: the real ones, less the grip where it is free
+        self.penalty_mask = self.action_mask.clone()
+        if c.free_grip:
+            for i, n in enumerate(act_sizes):
+                self.penalty_mask[i, :, n - 1] = 0.0
         self.noise = make_noise(c.noise, c.noise_std, c.ou_theta)
         # target smoothing noise draws from the learner's own stream, not torch's global one
         self.torch_rng = torch.Generator().manual_seed(seed + 1)
         self.updates = 0
+
+    def action_penalty(self, actions: torch.Tensor) -> torch.Tensor:
+        """``action_l2`` times the mean squared action per agent, (A,), from actions (A, B, U):
+        over every real component, or all but the grip with ``free_grip``."""
+        return self.config.action_l2 * (actions ** 2 * self.penalty_mask).mean(dim=(1, 2))
 
     # --------------------------------------------------------------- acting
     def policy(self, obs: torch.Tensor) -> torch.Tensor:
@@ -195,7 +207,7 @@ class DADDPG:
         self.critic.requires_grad_(False)
         q_pi = self.q_total(self._per_agent(self.critic(self._critic_input(o, a_pi)))[0])
         self.critic.requires_grad_(True)
-        actor_loss = (-q_pi.mean(dim=(1, 2)) + c.action_l2 * (a_pi ** 2).mean(dim=(1, 2))).sum()
+        actor_loss = (-q_pi.mean(dim=(1, 2)) + self.action_penalty(a_pi)).sum()
         if demo_rows and c.bc_weight > 0:
             # behaviour cloning on the demonstrations the critic prefers to the actor's actions
             q_demo = self.q_total(q[0, :, -demo_rows:])
