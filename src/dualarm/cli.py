@@ -32,7 +32,7 @@ def _seconds(allow_zero: bool):
 
 def _summary(result, rec) -> str:
     """A few human-readable lines about a mapping result."""
-    from dualarm.kinematics import BAXTER_JOINT_NAMES
+    from dualarm.task import JOINT_COLUMNS
     from dualarm.mocap.joint_angles import RESIDUAL_COLUMNS
 
     lines = [f"{rec.source}: {rec.n_samples} samples, {rec.duration:.2f} s at {rec.rate_hz:.1f} Hz; "
@@ -51,9 +51,8 @@ def _summary(result, rec) -> str:
         for i, name in enumerate(RESIDUAL_COLUMNS)))
     clipped = result.robot.clipped_fraction
     if clipped.any():
-        names = [f"{arm}_{j}" for arm in ("left", "right") for j in BAXTER_JOINT_NAMES]
         lines.append("clipped to Baxter's limits: " + ", ".join(
-            f"{n} {100 * c:.1f}%" for n, c in zip(names, clipped) if c > 0))
+            f"{n} {100 * c:.1f}%" for n, c in zip(JOINT_COLUMNS, clipped) if c > 0))
     else:
         lines.append("clipped to Baxter's limits: none")
     return "\n".join(lines)

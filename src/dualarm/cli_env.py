@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from dualarm.cli_types import InputPath, OutputFile
+from dualarm.task import CONDITIONS
 
 
 def _environment(args: argparse.Namespace):
@@ -107,7 +108,7 @@ def add_env_commands(sub) -> None:
     esub = env.add_subparsers(dest="env_command", required=True, metavar="COMMAND")
 
     def task_options(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--condition", choices=("none", "single", "multi"), default="none",
+        p.add_argument("--condition", choices=CONDITIONS, default="none",
                        help="joint-angle guidance (needs --constraints unless none; default: none)")
         p.add_argument("--constraints", type=InputPath, metavar="FILE.yaml",
                        help="constraints file for the single/multi conditions")

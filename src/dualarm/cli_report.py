@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from dualarm.cli_types import InputPath, OutputDir, positive_int, rate
+from dualarm.task import TARGET_SUCCESS
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -37,6 +38,6 @@ def add_report_commands(sub) -> None:
                         help="output directory (default: DIR/report)")
     report.add_argument("--window", type=positive_int, default=100, metavar="N",
                         help="moving-average window, episodes (default: 100)")
-    report.add_argument("--target", type=rate, default=0.85, metavar="RATE",
-                        help="success rate of 'episodes to target' (default: 0.85)")
+    report.add_argument("--target", type=rate, default=TARGET_SUCCESS, metavar="RATE",
+                        help="success rate of 'episodes to target' (default: %(default)s)")
     report.set_defaults(func=cmd_report)

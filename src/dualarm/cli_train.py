@@ -9,6 +9,7 @@ from pathlib import Path
 
 from dualarm.cli_types import InputPath, OutputDir, OutputFile, positive_int
 from dualarm.errors import InputError
+from dualarm.task import CONDITIONS
 
 
 def cmd_train(args: argparse.Namespace) -> int:
@@ -112,7 +113,7 @@ def add_train_commands(sub) -> None:
                            description="Train the dual-agent DDPG on the reach-grasp-align task. "
                                        "Writes config.yaml, metrics.csv, eval.csv, TensorBoard "
                                        "events and checkpoints to the run directory.")
-    train.add_argument("--condition", choices=("none", "single", "multi"),
+    train.add_argument("--condition", choices=CONDITIONS,
                        help="joint-angle guidance (default: multi, with the shipped constraints)")
     train.add_argument("--constraints", type=InputPath, metavar="FILE.yaml",
                        help="constraints file for single/multi (default: the shipped one)")

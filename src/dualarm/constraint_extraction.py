@@ -57,6 +57,7 @@ import numpy as np
 from dualarm.constraints import SUBTASKS, ConstraintSet, parse_segments
 from dualarm.errors import InputError
 from dualarm.kinematics import ARMS, BAXTER_JOINT_LIMITS, baxter_arm
+from dualarm.task import JOINTS_PER_ARM
 
 #: Columns of a labels file; ``arm`` may be left out.
 LABEL_COLUMNS = ("demo", "arm", "subtask", "start_s", "end_s")
@@ -68,7 +69,7 @@ DEFAULT_LOWPASS_HZ = 6.0
 #: Recording file endings recognised in a demonstration folder.
 DEMO_EXTENSIONS = (".csv.gz", ".csv", ".sto", ".mat")
 
-_N_ARM = 7
+_N_ARM = JOINTS_PER_ARM
 _SUB = {name: k for k, name in enumerate(SUBTASKS)}
 _LIMITS14 = np.concatenate([BAXTER_JOINT_LIMITS, BAXTER_JOINT_LIMITS])
 

@@ -17,8 +17,9 @@ from dualarm.constraint_extraction import DemoJoints, arm_volume_fractions, widt
 from dualarm.constraints import JOINT_COLUMNS, SUBTASKS, ConstraintSet
 from dualarm.kinematics import ARMS, BAXTER_JOINT_NAMES
 from dualarm.mocap.plots import ARM_COLOURS, save_figure
+from dualarm.task import JOINTS_PER_ARM
 
-_N_ARM = 7
+_N_ARM = JOINTS_PER_ARM
 _SEGMENT_COLOURS = ("tab:green", "tab:orange", "tab:purple")
 
 

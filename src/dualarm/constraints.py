@@ -15,19 +15,16 @@ import yaml
 
 from dualarm.atomic import atomic_open
 from dualarm.errors import InputError
-from dualarm.kinematics import ARMS, BAXTER_JOINT_LIMITS, BAXTER_JOINT_NAMES
+from dualarm.kinematics import BAXTER_JOINT_LIMITS, BAXTER_JOINT_NAMES
+from dualarm.task import GUIDED_CONDITIONS, JOINT_COLUMNS, PAPER_C0, SUBTASKS
 from dualarm.yaml_io import read_yaml
 
-#: Sub-tasks of the dual-arm task, in the order they are done.
-SUBTASKS = ("reach", "grasp", "align")
-#: The 14 joint columns of a dual-arm joint vector: left arm s0..w2, then right arm s0..w2.
-JOINT_COLUMNS = tuple(f"{arm}_{joint}" for arm in ARMS for joint in BAXTER_JOINT_NAMES)
 #: Guide-reward constants c0 per sub-task (reach, grasp, align), from the paper's experiment.
-DEFAULT_C0 = (0.01, 0.01, 0.05)
+DEFAULT_C0 = PAPER_C0
 #: Version of the YAML file layout written by :meth:`ConstraintSet.save`.
 SCHEMA_VERSION = 1
 #: Conditions with a shipped constraints file (``default_constraints_path``).
-DEFAULT_CONDITIONS = ("single", "multi")
+DEFAULT_CONDITIONS = GUIDED_CONDITIONS
 
 _N_JOINTS = len(JOINT_COLUMNS)
 _N_ARM = len(BAXTER_JOINT_NAMES)

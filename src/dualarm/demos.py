@@ -61,6 +61,7 @@ from dualarm.errors import InputError
 from dualarm.kinematics import baxter_arm
 from dualarm.mocap.recording import SENSORS, Recording
 from dualarm.mocap.synthetic import random_mountings, sensor_quaternions
+from dualarm.task import JOINTS_PER_ARM
 
 #: The shipped default demonstration set (10 demonstrations, ``generate_demos(10, seed=0)``).
 DEFAULT_DEMO_DIR = Path(__file__).parent / "data" / "demos"
@@ -76,7 +77,7 @@ DEFAULT_COUNT = 10
 #: Seed of the default set.
 DEFAULT_SEED = 0
 
-_N_ARM = 7
+_N_ARM = JOINTS_PER_ARM
 
 
 @dataclass(frozen=True)

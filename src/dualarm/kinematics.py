@@ -39,9 +39,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-ARMS = ("left", "right")
+from dualarm.task import ARMS, BAXTER_JOINT_NAMES  # noqa: F401  (re-exported)
+
 JOINT_NAMES = ("q1", "q2", "q3", "q4", "q5", "q6", "q7")
-BAXTER_JOINT_NAMES = ("s0", "s1", "e0", "e1", "w0", "w1", "w2")
 
 #: Human base frame in G for both arms (columns: base x, y, z) = -z_G, -y_G, -x_G.
 HUMAN_BASE_ROTATION = np.array([[0.0, 0.0, -1.0],

@@ -10,11 +10,11 @@ from dataclasses import dataclass, field, fields, replace
 
 from dualarm.envs.scene import SceneConfig
 from dualarm.errors import InputError
+from dualarm.task import (CONDITIONS, PAPER_C0, PAPER_COORDINATE_BONUS, PAPER_GRASP_BONUS,
+                          PAPER_REACH_BONUS, SUBTASKS)
 from dualarm.typed_fields import check_field_types
 
-CONDITIONS = ("none", "single", "multi")
 GOALS = ("subtask", "final")
-SUBTASK_ORDER = ("reach", "grasp", "align")
 
 
 @dataclass(frozen=True)
@@ -80,10 +80,10 @@ class TaskConfig:
     grasp_gap_margin: float = 0.006
     lift_height: float = 0.02
     align_threshold: float = 0.03
-    reach_bonus: float = 1.0
-    grasp_bonus: float = 20.0
-    coordinate_bonus: float = 4000.0
-    guide_c0: tuple[float, float, float] = (0.01, 0.01, 0.05)
+    reach_bonus: float = PAPER_REACH_BONUS
+    grasp_bonus: float = PAPER_GRASP_BONUS
+    coordinate_bonus: float = PAPER_COORDINATE_BONUS
+    guide_c0: tuple[float, float, float] = PAPER_C0
     box_x_range: tuple[float, float] = (0.55, 0.75)
     box_y_range: tuple[float, float] = (0.1, 0.3)
     target_x_range: tuple[float, float] = (0.6, 0.75)
@@ -104,8 +104,8 @@ class TaskConfig:
             raise InputError(f"condition must be one of {CONDITIONS}, got {self.condition!r}")
         if self.goal not in GOALS:
             raise InputError(f"goal must be one of {GOALS}, got {self.goal!r}")
-        if self.success_at not in SUBTASK_ORDER:
-            raise InputError(f"success_at must be one of {SUBTASK_ORDER}, got {self.success_at!r}")
+        if self.success_at not in SUBTASKS:
+            raise InputError(f"success_at must be one of {SUBTASKS}, got {self.success_at!r}")
         if self.max_episode_steps < 1 or self.substeps < 1:
             raise InputError("max_episode_steps and substeps must be at least 1")
         if self.reach_funnel < 0 or self.reach_funnel_height < 0:

@@ -25,12 +25,11 @@ from dualarm.atomic import atomic_copy, atomic_open
 from dualarm.errors import InputError
 from dualarm.experiments.backends import MANIFEST, RunOutcome, RunTask, logged_episodes, read_done
 from dualarm.locks import DirectoryLock
+from dualarm.task import CONDITIONS, GUIDED_CONDITIONS
 from dualarm.training.config import TrainConfig
 from dualarm.training.run_dir import RunPaths
 from dualarm.yaml_io import read_yaml
 
-CONDITIONS = ("none", "single", "multi")
-GUIDED = ("single", "multi")
 DEFAULT_SEEDS = (0, 1, 2)
 MANIFEST_FORMAT = "dualarm-comparison"
 MANIFEST_VERSION = 1
@@ -332,7 +331,7 @@ def _constraint_copies(comparison: Comparison, given_dir: Path | None) -> dict[s
     if comparison.constraints_dir is None:
         return {}
     copies = {}
-    for condition in (c for c in comparison.conditions if c in GUIDED):
+    for condition in (c for c in comparison.conditions if c in GUIDED_CONDITIONS):
         copy = comparison.constraints_path(condition)
         source = (given_dir or comparison.constraints_dir) / f"{condition}.yaml"
         if copy.exists():

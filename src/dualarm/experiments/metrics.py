@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dualarm.task import TARGET_SUCCESS
+
 #: The ratios between conditions that the paper quotes (numerator, denominator).
 RATIO_PAIRS: tuple[tuple[str, str], ...] = (("multi", "none"), ("single", "none"), ("multi", "single"))
 
@@ -57,7 +59,7 @@ def trailing_mean(x, window: int) -> tuple[np.ndarray, np.ndarray]:
     return ma, end >= window
 
 
-def episodes_to_target(success, target: float = 0.85, window: int = 100) -> int | None:
+def episodes_to_target(success, target: float = TARGET_SUCCESS, window: int = 100) -> int | None:
     """First episode at which the success rate over the last ``window`` episodes is >= target.
 
     Only full windows count: the earliest possible answer is episode ``window`` (a lucky first

@@ -19,15 +19,14 @@ import numpy as np
 
 from dualarm.atomic import atomic_open
 from dualarm.errors import InputError
+from dualarm.task import CONDITION_NAMES, CONDITIONS, TARGET_SUCCESS
 from dualarm.experiments.metrics import (RATIO_PAIRS, Convergence, condition_ratios, convergence,
                                          episodes_to_target, max_average, mean_ci, trailing_mean)
 
-#: The conditions in the order of every table and figure.
-CONDITION_ORDER = ("none", "single", "multi")
 #: Columns a run's metrics.csv must have (the others are not read).
-METRICS_COLUMNS = ("episode", "wall_time_s", "return_total", "success")
+METRICS_READ = ("episode", "wall_time_s", "return_total", "success")
 #: Columns an eval.csv must have when it has rows.
-EVAL_COLUMNS = ("episode", "success_rate")
+EVAL_READ = ("episode", "success_rate")
 #: The quantities whose ratios between conditions the paper quotes.
 RATIO_QUANTITIES = ("episodes_to_target", "convergence_episode", "convergence_time_s")
 
@@ -38,8 +37,6 @@ PAPER = {
     "convergence_time_s": {"multi": 48590, "single": 75830, "none": 96393},
     "max_avg_success": {"multi": 0.98, "single": 0.94, "none": 0.98},
 }
-#: The success target of the paper's "episodes to 0.85".
-PAPER_TARGET = 0.85
 #: Ratios the text quotes; the others shown are derived from the values in ``PAPER``.
 PAPER_QUOTED_RATIOS = {
     ("episodes_to_target", ("multi", "single")): 0.77,
@@ -57,8 +54,6 @@ QUANTITY_NAMES = {
     "max_avg_success": "max average success",
     "final_eval_success": "final evaluation success",
 }
-CONDITION_NAMES = {"none": "no constraint", "single": "single-segment C1",
-                   "multi": "multi-segment C2&C3"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -186,7 +181,7 @@ class Report:
         window: moving-average window, episodes.
         target: success target of "episodes to target".
         runs: every run read, sorted by condition and seed.
-        conditions: condition -> summary, in ``CONDITION_ORDER`` (absent conditions left out).
+        conditions: condition -> summary, in ``CONDITIONS`` (absent conditions left out).
         ratios: quantity (``RATIO_QUANTITIES``) -> (numerator, denominator) -> ratio of the
             per-condition means, or None when not available.
         notes: remarks a reader must see (partial runs, truncation, flagged means).
@@ -278,7 +273,7 @@ def load_run(run_dir: str | Path) -> Run:
 
     paths = RunPaths(run_dir)
     config = TrainConfig.load(paths.config)
-    m, notes = _read_columns(paths.metrics, METRICS_COLUMNS)
+    m, notes = _read_columns(paths.metrics, METRICS_READ)
     episode = m["episode"]
     wrong = np.flatnonzero(episode != np.arange(1, len(episode) + 1))
     if wrong.size:
@@ -291,10 +286,10 @@ def load_run(run_dir: str | Path) -> Run:
         raise InputError(f"success must be 0 or 1, got {m['success'][off[0]]:g}",
                          source=str(paths.metrics), row=int(off[0]) + 1, column="success")
     if paths.eval.is_file():
-        e, eval_notes = _read_columns(paths.eval, EVAL_COLUMNS)
+        e, eval_notes = _read_columns(paths.eval, EVAL_READ)
         notes += eval_notes
     else:
-        e = {name: np.zeros(0) for name in EVAL_COLUMNS}
+        e = {name: np.zeros(0) for name in EVAL_READ}
     return Run(path=paths.root, condition=config.condition, seed=config.seed,
                planned_episodes=config.episodes, wall_time_s=m["wall_time_s"],
                return_total=m["return_total"], success=m["success"],
@@ -303,7 +298,7 @@ def load_run(run_dir: str | Path) -> Run:
 
 
 def summarize_condition(condition: str, runs: list[Run], window: int = 100,
-                        target: float = 0.85) -> ConditionSummary:
+                        target: float = TARGET_SUCCESS) -> ConditionSummary:
     """Per-seed curves and quantities of one condition, on the episodes common to its runs.
 
     Args:
@@ -337,7 +332,7 @@ def summarize_condition(condition: str, runs: list[Run], window: int = 100,
         eval_episode=np.array(common, dtype=int), eval_success=eval_success)
 
 
-def build_report(comparison_dir: str | Path, window: int = 100, target: float = 0.85) -> Report:
+def build_report(comparison_dir: str | Path, window: int = 100, target: float = TARGET_SUCCESS) -> Report:
     """Read every run under ``comparison_dir`` and summarise each condition.
 
     Args:
@@ -361,7 +356,7 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
         raise InputError("no run directories (directories with config.yaml and metrics.csv) "
                          "here or up to two levels below", source=str(root))
     runs = sorted((load_run(d) for d in dirs),
-                  key=lambda r: (CONDITION_ORDER.index(r.condition), r.seed, str(r.path)))
+                  key=lambda r: (CONDITIONS.index(r.condition), r.seed, str(r.path)))
     notes = []
     for r in runs:
         where = _relative(r.path, root)
@@ -382,7 +377,7 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
     if not runs_used:
         raise InputError("none of its runs has logged an episode yet", source=str(root))
     conditions = {}
-    for c in CONDITION_ORDER:
+    for c in CONDITIONS:
         group = [r for r in runs_used if r.condition == c]
         if group:
             conditions[c] = summarize_condition(c, group, int(window), float(target))
@@ -434,7 +429,7 @@ def paper_ratio(quantity: str, pair: tuple[str, str]) -> tuple[float, bool]:
 
 
 def _paper_value(report: Report, quantity: str, condition: str) -> float | None:
-    if quantity == "episodes_to_target" and not math.isclose(report.target, PAPER_TARGET):
+    if quantity == "episodes_to_target" and not math.isclose(report.target, TARGET_SUCCESS):
         return None
     return PAPER.get(quantity, {}).get(condition)
 
@@ -483,7 +478,7 @@ def summary_rows(report: Report) -> tuple[list[str], list[list[str]]]:
     t = report.target
     header = ["condition", "seeds", "episodes compared", f"episodes to success {t:g}",
               "episodes to convergence", "time to convergence, s", "max average success",
-              "final evaluation success", f"paper: to {PAPER_TARGET:g}", "paper: convergence",
+              "final evaluation success", f"paper: to {TARGET_SUCCESS:g}", "paper: convergence",
               "paper: time, s", "paper: max success"]
     rows = []
     for c, s in report.conditions.items():
@@ -509,8 +504,8 @@ def ratio_rows(report: Report) -> tuple[list[str], list[list[str]]]:
         for pair in RATIO_PAIRS:
             ours = report.ratios[q][pair]
             paper, quoted = paper_ratio(q, pair)
-            if q == "episodes_to_target" and not math.isclose(report.target, PAPER_TARGET):
-                paper_text = f"({PAPER_TARGET:g} only)"
+            if q == "episodes_to_target" and not math.isclose(report.target, TARGET_SUCCESS):
+                paper_text = f"({TARGET_SUCCESS:g} only)"
             else:
                 paper_text = f"{paper:.2f}" + ("" if quoted else " (derived)")
             note = ratio_note(report, q, pair)
@@ -574,7 +569,7 @@ def csv_table(report: Report) -> str:
                 pair = (c, den)
                 if pair in RATIO_PAIRS:
                     paper = paper_ratio(q, pair)[0]
-                    if q == "episodes_to_target" and not math.isclose(report.target, PAPER_TARGET):
+                    if q == "episodes_to_target" and not math.isclose(report.target, TARGET_SUCCESS):
                         paper = None
                     row += [_csv_num(report.ratios[q][pair]), _csv_num(paper)]
                 else:
@@ -699,7 +694,7 @@ def save_report(report: Report, out: str | Path) -> Path:
 
 
 def write_report(comparison_dir: str | Path, out: str | Path | None = None, window: int = 100,
-                 target: float = 0.85) -> Path:
+                 target: float = TARGET_SUCCESS) -> Path:
     """Write the report of a comparison directory: Figs. 6-8 (PNG), table.md, table.csv and
     index.html, each atomically, index.html last.
 

@@ -26,7 +26,7 @@ def _plt():
 
 
 def _label(s: "ConditionSummary") -> str:
-    from dualarm.experiments.report import CONDITION_NAMES
+    from dualarm.task import CONDITION_NAMES
 
     seeds = (f"{s.seeds} seeds, 95% CI" if s.seeds > 1 else "1 seed, no CI")
     return f"{CONDITION_NAMES[s.condition]} ({seeds})"

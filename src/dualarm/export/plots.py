@@ -12,6 +12,7 @@ from dualarm.export.retime import Retimed
 from dualarm.export.trajectory import POSITION_LIMITS
 from dualarm.kinematics import BAXTER_JOINT_NAMES
 from dualarm.mocap.plots import save_figure
+from dualarm.task import ARMS, JOINTS_PER_ARM
 
 _ARM_COLOURS = {"left": "tab:blue", "right": "tab:orange"}
 
@@ -28,8 +29,8 @@ def plot_retimed(retimed: Retimed, path: str | Path, rate_hz: float = 200.0) -> 
     for r, (label, values, limit) in enumerate(rows):
         for j, joint in enumerate(BAXTER_JOINT_NAMES):
             ax = axes[r, j]
-            for a, arm in enumerate(("left", "right")):
-                col = 7 * a + j
+            for a, arm in enumerate(ARMS):
+                col = JOINTS_PER_ARM * a + j
                 ax.plot(s.time, np.degrees(values[:, col]), color=_ARM_COLOURS[arm], lw=1.2,
                         label=arm if (r, j) == (0, 0) else None)
                 if r == 0:

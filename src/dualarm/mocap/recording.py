@@ -13,13 +13,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dualarm.errors import InputError
+from dualarm.task import ARMS  # noqa: F401  (part of this module's vocabulary)
 
 #: The six sensors, left arm first, proximal to distal.
 SENSORS: tuple[str, ...] = (
     "left_upper_arm", "left_forearm", "left_hand",
     "right_upper_arm", "right_forearm", "right_hand",
 )
-ARMS: tuple[str, ...] = ("left", "right")
 SEGMENTS: tuple[str, ...] = ("upper_arm", "forearm", "hand")
 
 #: Largest accepted deviation of a quaternion's norm from 1.

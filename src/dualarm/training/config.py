@@ -85,7 +85,7 @@ class TrainConfig:
 
     def __post_init__(self):
         check_field_types(self)
-        from dualarm.envs.config import CONDITIONS
+        from dualarm.task import CONDITIONS
         if self.condition not in CONDITIONS:
             raise InputError(f"condition must be one of {CONDITIONS}, got {self.condition!r}")
         unknown = sorted(set(self.task) - set(TASK_OVERRIDES))

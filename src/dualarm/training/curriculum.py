@@ -20,8 +20,10 @@ from collections import deque
 
 import numpy as np
 
+from dualarm.task import SUBTASKS
+
 #: Start classes, earliest first: the sub-task at which an arm begins.
-START_CLASSES = ("reach", "grasp", "align")
+START_CLASSES = SUBTASKS
 
 
 class ReverseCurriculum:

@@ -34,12 +34,10 @@ from dualarm.training.curriculum import START_CLASSES, ReverseCurriculum
 from dualarm.training.demonstrations import record_expert_demonstrations
 from dualarm.training.evaluation import evaluate
 from dualarm.training.rounds import run_round
-from dualarm.training.run_dir import (CheckpointError, CsvLog, RunPaths, load_checkpoint,
-                                      save_checkpoint)
+from dualarm.training.run_dir import (EVAL_COLUMNS, CheckpointError, CsvLog, RunPaths,
+                                      load_checkpoint, save_checkpoint)
 from dualarm.training.vector import BaxterVector, ParallelEnvVector, VectorEnv, seeds_for
 
-EVAL_COLUMNS = ["episode", "env_steps", "wall_time_s", "success_rate", "return_mean",
-                "steps_mean"]
 
 
 class TrainingDiverged(DualarmError, RuntimeError):
@@ -158,7 +156,7 @@ class Trainer:
         self.timing = {"collect_s": 0.0, "act_s": 0.0, "store_s": 0.0, "update_s": 0.0,
                        "updates": 0, "episodes": 0, "env_steps": 0}
         self.metrics = CsvLog(paths.metrics, columns)
-        self.eval_log = CsvLog(paths.eval, EVAL_COLUMNS, consecutive=False)
+        self.eval_log = CsvLog(paths.eval, list(EVAL_COLUMNS), consecutive=False)
         self._writer = None
         self._lock: DirectoryLock | None = None
 

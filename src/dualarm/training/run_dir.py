@@ -27,6 +27,8 @@ from dualarm.errors import DualarmError
 
 CHECKPOINT_FORMAT = "dualarm-daddpg-checkpoint"
 CHECKPOINT_VERSION = 1
+#: Columns of eval.csv, one row per evaluation, as the trainer writes them.
+EVAL_COLUMNS = ("episode", "env_steps", "wall_time_s", "success_rate", "return_mean", "steps_mean")
 
 
 class CheckpointError(DualarmError):

@@ -16,6 +16,8 @@ from typing import Callable
 import gymnasium
 import numpy as np
 
+from dualarm.task import ARMS
+
 
 @dataclass
 class VectorStep:
@@ -84,7 +86,7 @@ class BaxterVector(VectorEnv):
         self.batch = BaxterBatch(config, constraints, num_envs, start_probs=start_probs,
                                  approach_starts=approach_starts)
         self.num_envs = num_envs
-        self.agents = ("left", "right")
+        self.agents = ARMS
         self.obs_sizes = (self.batch.obs_size,) * 2
         self.act_sizes = (self.batch.action_size,) * 2
 
