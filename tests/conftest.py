@@ -8,18 +8,19 @@ import pytest  # noqa: E402
 
 
 def pytest_addoption(parser):
-    parser.addoption("--slow", action="store_true",
-                     help="also run the tests marked slow (training runs of tens of minutes)")
+    parser.addoption("--paper-scale", action="store_true",
+                     help="also run the tests marked paper_scale (training runs of tens of minutes)")
 
 
 def pytest_configure(config):
-    config.addinivalue_line("markers", "slow: a training run of tens of minutes; runs with --slow")
+    config.addinivalue_line("markers", "paper_scale: a training run of tens of minutes; only with "
+                            "--paper-scale (CI skips it)")
 
 
 def pytest_collection_modifyitems(config, items):
-    if config.getoption("--slow"):
+    if config.getoption("--paper-scale"):
         return
-    skip = pytest.mark.skip(reason="slow: run with --slow")
+    skip = pytest.mark.skip(reason="paper scale: run with --paper-scale")
     for item in items:
-        if "slow" in item.keywords:
+        if "paper_scale" in item.keywords:
             item.add_marker(skip)

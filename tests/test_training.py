@@ -201,7 +201,7 @@ def test_daddpg_learns_the_baxter_reach_to_80_percent_without_demonstrations(tmp
     assert max(success) >= 0.8, success
 
 
-@pytest.mark.slow
+@pytest.mark.paper_scale
 def test_daddpg_learns_the_whole_task_without_demonstrations(tmp_path):
     """Reach, grasp and align from the normal reset, paper's reward and constants, no
     demonstrations: configs/td3-curriculum.yaml (twin critics, hindsight targets, a reverse
