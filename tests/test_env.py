@@ -17,6 +17,7 @@ from dualarm.constraints import ConstraintSet
 from dualarm.envs.baxter import (_GAP_AT_ZERO, OBS_LAYOUT, BaxterReachGraspAlign, StepResult,
                                  home_posture, observation_layout)
 from dualarm.envs.config import TaskConfig
+from dualarm.errors import InputError
 from dualarm.envs.expert import ScriptedExpert
 from dualarm.envs.gym_env import BaxterReachGraspAlignEnv
 from dualarm.envs.pettingzoo_env import BaxterParallelEnv
@@ -880,3 +881,21 @@ def test_cartesian_grip_site_stays_above_the_table(core):
     floor = core.config.scene.table_height + core.config.min_grip_height
     z = grip_pos(core)[:, 2]
     assert np.all(z > floor - 0.005) and np.all(z < floor + 0.02), z
+
+
+def test_cartesian_commands_stay_in_the_configured_workspace():
+    """The grip-site workspace comes from TaskConfig: a lower ceiling and a narrower y range
+    stop arms that are driven up and outwards."""
+    env = BaxterReachGraspAlign(TaskConfig(grip_max_z=1.0, grip_y_range=(-0.3, 0.3)))
+    env.reset(seed=0)
+    action = np.array([[0.0, 1.0, 1.0, 0.0], [0.0, -1.0, 1.0, 0.0]])   # left up and to +y, right to -y
+    for _ in range(15):
+        env.step(action)
+    p = grip_pos(env)
+    assert np.all(p[:, 2] < 1.0 + 0.01) and np.all(p[:, 2] > 0.97), p
+    assert p[0, 1] < 0.3 + 0.01 and p[1, 1] > -0.3 - 0.01, p
+
+
+def test_a_workspace_ceiling_below_the_floor_is_refused():
+    with pytest.raises(InputError, match="grip_max_z"):
+        TaskConfig(grip_max_z=0.7)

@@ -440,8 +440,10 @@ class BaxterBatch:
         self._goal_is_subtask = config.goal == "subtask"
         self._success_key = {"reach": "reached", "grasp": "grasped", "align": "aligned"}[config.success_at]
         self._observe_joints = config.observes_joint_angles
-        self._workspace_low = np.array([0.25, -0.7, scene.table_height + config.min_grip_height])
-        self._workspace_high = np.array([1.1, 0.7, 1.4])
+        self._workspace_low = np.array([config.grip_x_range[0], config.grip_y_range[0],
+                                        scene.table_height + config.min_grip_height])
+        self._workspace_high = np.array([config.grip_x_range[1], config.grip_y_range[1],
+                                         config.grip_max_z])
         self._lower = BAXTER_JOINT_LIMITS[:, 0]
         self._upper = BAXTER_JOINT_LIMITS[:, 1]
         self._instability = [int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS,

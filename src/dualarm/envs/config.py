@@ -41,6 +41,10 @@ class TaskConfig:
         max_cartesian_step: grip-site displacement per step at action 1 (paper's gym: 5 cm).
         max_joint_step: joint-target change per step at action 1 in joint mode (rad).
         min_grip_height: lowest grip-site height above the table top (keeps fingers off it).
+        grip_x_range, grip_y_range: the box of world x and y (m) that Cartesian grip-site
+            commands are clipped to.
+        grip_max_z: the highest world z (m) of a Cartesian grip-site command (the lowest is
+            the table top plus ``min_grip_height``).
         reach_threshold: reach is complete when the grip site is this close to the box centre.
         grasp_tolerance: the box counts as between the fingers within this of the grip site.
         grasp_gap_margin: fingers count as closed on the box when their gap is at most the
@@ -75,6 +79,9 @@ class TaskConfig:
     max_cartesian_step: float = 0.05
     max_joint_step: float = 0.1
     min_grip_height: float = 0.02
+    grip_x_range: tuple[float, float] = (0.25, 1.1)
+    grip_y_range: tuple[float, float] = (-0.7, 0.7)
+    grip_max_z: float = 1.4
     reach_threshold: float = 0.02
     grasp_tolerance: float = 0.02
     grasp_gap_margin: float = 0.006
@@ -108,6 +115,9 @@ class TaskConfig:
             raise InputError(f"success_at must be one of {SUBTASKS}, got {self.success_at!r}")
         if self.max_episode_steps < 1 or self.substeps < 1:
             raise InputError("max_episode_steps and substeps must be at least 1")
+        if self.grip_max_z <= self.scene.table_height + self.min_grip_height:
+            raise InputError(f"grip_max_z ({self.grip_max_z} m) must be above the table top plus "
+                             f"min_grip_height ({self.scene.table_height + self.min_grip_height} m)")
         if self.reach_funnel < 0 or self.reach_funnel_height < 0:
             raise InputError("reach_funnel and reach_funnel_height must be non-negative, got "
                              f"{self.reach_funnel} and {self.reach_funnel_height}")
