@@ -156,8 +156,10 @@ def test_layer_norm_critics_ignore_the_scale_of_their_hidden_pre_activations():
         for model in (net, plain):
             model.hidden[0].weight.mul_(10.0)
             model.hidden[0].bias.mul_(10.0)
-    torch.testing.assert_close(net(x), y)
-    assert not torch.allclose(plain(x), y_plain)
+    # Invariant up to layer_norm's eps (1e-5 on the variance): tolerances well above
+    # float rounding on any BLAS, far below the plain network's change.
+    torch.testing.assert_close(net(x), y, rtol=1e-4, atol=1e-4)
+    assert not torch.allclose(plain(x), y_plain, rtol=1e-2, atol=1e-2)
     assert DADDPG(DADDPGConfig(hidden=(16,), critic_layer_norm=True), OBS, ACT).critic.norms is not None
 
 
