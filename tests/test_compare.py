@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from dualarm.cli import main
-from dualarm.constraints import default_constraints_path
+from dualarm.constraints.constraint_set import default_constraints_path
 from dualarm.errors import InputError
 from dualarm.experiments.backends import RayBackend, execute, read_done
 from dualarm.experiments.compare import (CompareRequest, compare, load_manifest, prepare,

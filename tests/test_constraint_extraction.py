@@ -1,4 +1,4 @@
-"""Tests of dualarm.constraint_extraction: Eq. 12, labels files, segmentation, analysis, plots, CLI."""
+"""Tests of dualarm.demos and dualarm.constraints: Eq. 12, labels files, segmentation, analysis, plots, CLI."""
 
 from __future__ import annotations
 
@@ -10,16 +10,17 @@ import numpy as np
 import pytest
 import yaml
 
-from dualarm import constraint_extraction as CE
 from dualarm.cli import main
-from dualarm.constraint_extraction import (DemoJoints, MappingOptions, arm_volume_fractions, combine_ranges,
-                                           demo_ranges, expert_inside_fractions, extract_constraints,
-                                           labels_csv_text, load_demo_dir, read_labels, segment_demo,
-                                           segment_masks, segmentation_agreement, width_fractions)
-from dualarm.constraint_plots import plot_constraints, plot_expert_inside, plot_volume_fractions, task_phase
-from dualarm.constraints import (JOINT_COLUMNS, SUBTASKS, ConstraintSet, default_constraints_path,
-                                 parse_segments)
-from dualarm.demos import DEFAULT_DEMO_DIR
+from dualarm.constraints.analysis import arm_volume_fractions, expert_inside_fractions
+from dualarm.constraints.extraction import (combine_ranges, demo_ranges, extract_constraints,
+                                            extraction_provenance, segment_masks)
+from dualarm.demos.labels import labels_csv_text, read_labels
+from dualarm.demos.loading import DemoJoints, load_demo_dir, MappingOptions
+from dualarm.demos.segmentation import hand_points, segment_demo, segmentation_agreement
+from dualarm.constraints.plots import plot_constraints, plot_expert_inside, plot_volume_fractions, task_phase
+from dualarm.constraints.constraint_set import ConstraintSet, default_constraints_path, parse_segments
+from dualarm.task import JOINT_COLUMNS, SUBTASKS
+from dualarm.demos.formats import DEFAULT_DEMO_DIR, file_sha256
 from dualarm.errors import InputError
 from dualarm.kinematics import BAXTER_JOINT_LIMITS
 from dualarm.mocap.io import write_csv
@@ -274,7 +275,7 @@ def test_load_demo_dir_maps_and_checks(small_dir):
     d = demos[0]
     assert d.q.shape == (200, 14) and d.time[0] == 0.0
     assert np.all(d.q >= LIM[:, 0]) and np.all(d.q <= LIM[:, 1])
-    assert len(d.sha256) == 64 and d.sha256 == CE.file_sha256(small_dir / "a.csv")
+    assert len(d.sha256) == 64 and d.sha256 == file_sha256(small_dir / "a.csv")
     t, q = example_motion(duration_s=4.0, rate_hz=50.0, calib_s=1.0)
     raw = load_demo_dir(small_dir, options=MappingOptions(lowpass_hz=0))[0][0]
     np.testing.assert_allclose(raw.q, np.clip(q, LIM[:, 0], LIM[:, 1]), atol=1e-6)
@@ -308,7 +309,7 @@ def test_demo_dir_errors(small_dir, tmp_path):
 
 def test_extracted_file_round_trip_with_provenance(tmp_path, small_dir):
     demos, labels = load_demo_dir(small_dir)
-    prov = CE.extraction_provenance(demos, small_dir / "labels.csv", "labels file", MappingOptions(),
+    prov = extraction_provenance(demos, small_dir / "labels.csv", "labels file", MappingOptions(),
                                     "reach+grasp,align", 1.0, 0.02)
     cs = extract_constraints(demos, labels, "reach+grasp,align", percentile=1.0, margin=0.02, provenance=prov)
     path = tmp_path / "c.yaml"
@@ -319,8 +320,8 @@ def test_extracted_file_round_trip_with_provenance(tmp_path, small_dir):
     assert back == cs and back.name == "multi"
     p = back.provenance
     assert [d["file"] for d in p["demos"]] == ["a.csv", "b.csv"]
-    assert p["demos"][1]["sha256"] == CE.file_sha256(small_dir / "b.csv")
-    assert p["labels"]["sha256"] == CE.file_sha256(small_dir / "labels.csv")
+    assert p["demos"][1]["sha256"] == file_sha256(small_dir / "b.csv")
+    assert p["labels"]["sha256"] == file_sha256(small_dir / "labels.csv")
     assert p["options"] == {"segments": "reach+grasp,align", "percentile": 1.0, "margin_rad": 0.02,
                             "lowpass_hz": 6.0, "calib_seconds": 1.0, "calib_start": 0.0, "heading": "auto"}
     data = yaml.safe_load(path.read_text())
@@ -399,7 +400,7 @@ def test_segmentation_errors_name_the_demo(shipped):
     with pytest.raises(InputError, match=r"demo 'x', left arm: no pause before the reach"):
         segment_demo(d.time, still, None, demo="x")
     # The hand goes down to the box and stays there.
-    low = int(np.argmin(CE.hand_points(d.q)[:, 0, 2]))
+    low = int(np.argmin(hand_points(d.q)[:, 0, 2]))
     stays = d.q.copy()
     stays[low:] = stays[low]
     with pytest.raises(InputError, match=r"demo 'y', left arm: the hand never rises 0.02 m"):
@@ -422,12 +423,12 @@ def test_agreement_of_identical_and_shifted_windows():
 
 def test_width_and_volume_fractions():
     full = ConstraintSet.full_range()
-    np.testing.assert_allclose(width_fractions(full), 1.0)
+    np.testing.assert_allclose(full.width_fractions(), 1.0)
     np.testing.assert_allclose(arm_volume_fractions(full), 1.0)
     span = LIM[:, 1] - LIM[:, 0]
     half = ConstraintSet.from_groups({"reach+grasp": (LIM[:, 0] + 0.25 * span, LIM[:, 0] + 0.75 * span),
                                       "align": (LIM[:, 0], LIM[:, 0] + np.r_[[0.1] * 7, [1.0] * 7] * span)})
-    np.testing.assert_allclose(width_fractions(half), [[0.5] * 14, [0.1] * 7 + [1.0] * 7])
+    np.testing.assert_allclose(half.width_fractions(), [[0.5] * 14, [0.1] * 7 + [1.0] * 7])
     np.testing.assert_allclose(arm_volume_fractions(half), [[0.5 ** 7, 0.5 ** 7], [1e-7, 1.0]])
     np.testing.assert_allclose(half.volume_fraction(), [0.5 ** 14, 1e-7])
 

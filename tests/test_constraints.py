@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 import yaml
 
-from dualarm import constraints as C
-from dualarm.constraints import (DEFAULT_C0, JOINT_COLUMNS, SUBTASKS, ConstraintSegment, ConstraintSet,
-                                 parse_segments)
+from dualarm.constraints import constraint_set as C
+from dualarm.constraints.constraint_set import ConstraintSegment, ConstraintSet, DEFAULT_C0, parse_segments
+from dualarm.task import JOINT_COLUMNS, SUBTASKS
 from dualarm.errors import InputError
 from dualarm.kinematics import BAXTER_JOINT_LIMITS
 

@@ -9,10 +9,13 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from dualarm.cli import main
-from dualarm.constraint_extraction import (DemoJoints, baxter_joints, extract_constraints, hand_points,
-                                           load_demo_dir, read_grip_events, read_labels)
-from dualarm.demos import (DEFAULT_DEMO_DIR, GRIP_COLUMNS, HumanModel, generate_demos, swivel, time_warp, tremor,
-                           write_demo_set)
+from dualarm.constraints.extraction import extract_constraints
+from dualarm.demos.formats import read_grip_events
+from dualarm.demos.labels import read_labels
+from dualarm.demos.loading import baxter_joints, DemoJoints, load_demo_dir
+from dualarm.demos.segmentation import hand_points
+from dualarm.demos.formats import DEFAULT_DEMO_DIR, GRIP_COLUMNS
+from dualarm.demos.generate import generate_demos, HumanModel, swivel, time_warp, tremor, write_demo_set
 from dualarm.errors import InputError
 from dualarm.kinematics import baxter_arm
 from dualarm.mocap.io import read_recording

@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from dualarm.constraints import ConstraintSet
+from dualarm.constraints.constraint_set import ConstraintSet
 from dualarm.envs.baxter import (_GAP_AT_ZERO, OBS_LAYOUT, BaxterReachGraspAlign, StepResult,
                                  home_posture, observation_layout)
 from dualarm.envs.config import TaskConfig

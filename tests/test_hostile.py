@@ -20,7 +20,7 @@ from typing import Callable
 import pytest
 
 from dualarm.cli import main
-from dualarm.constraints import default_constraints_path
+from dualarm.constraints.constraint_set import default_constraints_path
 from dualarm.locks import LOCK_NAME, DirectoryLock
 from dualarm.mocap.io import write_csv
 from dualarm.mocap.synthetic import example_recording

@@ -12,8 +12,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dualarm.cli import main
-from dualarm.constraint_extraction import read_labels
-from dualarm.constraints import ConstraintSet, default_constraints_path
+from dualarm.demos.labels import read_labels
+from dualarm.constraints.constraint_set import ConstraintSet, default_constraints_path
 from dualarm.errors import DualarmError
 from dualarm.training import TrainConfig
 

@@ -3,7 +3,7 @@
 import yaml
 
 from dualarm.cli import main
-from dualarm.constraints import ConstraintSet
+from dualarm.constraints.constraint_set import ConstraintSet
 from dualarm.experiments.compare import load_manifest
 
 TINY = {"num_envs": 2, "eval_every": 2, "eval_episodes": 2,

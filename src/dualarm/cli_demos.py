@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from dualarm.cli_types import InputPath, OutputDir, OutputFile
+from dualarm.demos.formats import LABELS_NAME
 from dualarm.cli_types import non_negative as _non_negative
 from dualarm.cli_types import positive_int as _positive_int
 from dualarm.errors import InputError
@@ -22,20 +23,20 @@ def _percentile(text: str) -> float:
 
 
 def _demo_dir(args: argparse.Namespace) -> Path:
-    from dualarm.demos import DEFAULT_DEMO_DIR
+    from dualarm.demos.formats import DEFAULT_DEMO_DIR
 
     return Path(args.demo_dir) if args.demo_dir is not None else DEFAULT_DEMO_DIR
 
 
 def _options(args: argparse.Namespace):
-    from dualarm.constraint_extraction import MappingOptions
+    from dualarm.demos.loading import MappingOptions
 
     return MappingOptions(calib_seconds=args.calib_seconds, calib_start=args.calib_start, heading=args.heading,
                           lowpass_hz=args.lowpass_hz)
 
 
 def _auto_windows(demos, args) -> dict[str, np.ndarray]:
-    from dualarm.constraint_extraction import segment_demo
+    from dualarm.demos.segmentation import segment_demo
 
     calib_end = args.calib_start + args.calib_seconds
     return {d.name: segment_demo(d.time, d.q, None if args.no_grip else d.grip, calib_end_s=calib_end,
@@ -51,7 +52,7 @@ def _check_output(path: Path, suffixes: tuple[str, ...]) -> None:
 
 def cmd_demos_generate(args: argparse.Namespace) -> int:
     """Generate a demonstration set (IMU CSVs and labels) from the scripted expert."""
-    from dualarm.demos import generate_demos, write_demo_set
+    from dualarm.demos.generate import generate_demos, write_demo_set
 
     out = Path(args.output)
     demos = generate_demos(args.count, args.seed, progress=not args.quiet)
@@ -65,15 +66,16 @@ def cmd_demos_generate(args: argparse.Namespace) -> int:
 
 def cmd_demos_segment(args: argparse.Namespace) -> int:
     """Segment demonstrations automatically; compare with labels when there are any."""
-    from dualarm.constraint_extraction import (load_demo_dir, read_labels, segmentation_agreement,
-                                               write_labels)
+    from dualarm.demos.labels import read_labels, write_labels
+    from dualarm.demos.loading import load_demo_dir
+    from dualarm.demos.segmentation import segmentation_agreement
 
     if args.output:
         _check_output(args.output, (".csv",))
     demo_dir = _demo_dir(args)
     demos, _ = load_demo_dir(demo_dir, options=_options(args), require_labels=False, with_grip=True)
     auto = _auto_windows(demos, args)
-    labels_path = Path(args.labels) if args.labels else demo_dir / "labels.csv"
+    labels_path = Path(args.labels) if args.labels else demo_dir / LABELS_NAME
     if args.labels or labels_path.exists():
         labels = read_labels(labels_path)
         errors, agree = [], []
@@ -103,8 +105,9 @@ def cmd_demos_segment(args: argparse.Namespace) -> int:
 
 def cmd_constraints_extract(args: argparse.Namespace) -> int:
     """Eq. 12 over a folder of demonstrations -> constraints YAML."""
-    from dualarm.constraint_extraction import extract_constraints, extraction_provenance, load_demo_dir
-    from dualarm.constraints import parse_segments
+    from dualarm.constraints.extraction import extract_constraints, extraction_provenance
+    from dualarm.demos.loading import load_demo_dir
+    from dualarm.constraints.constraint_set import parse_segments
 
     _check_output(args.output, (".yaml", ".yml"))
     groups = parse_segments(args.segments)
@@ -115,10 +118,10 @@ def cmd_constraints_extract(args: argparse.Namespace) -> int:
                                   with_grip=args.auto_segment, progress=not args.quiet)
     if args.auto_segment:
         windows = _auto_windows(demos, args)
-        labels_file, origin = None, "automatic segmentation (dualarm.constraint_extraction.segment_demo)"
+        labels_file, origin = None, "automatic segmentation (dualarm.demos.segmentation.segment_demo)"
     else:
         windows = {name: lab.windows for name, lab in labels.items()}
-        labels_file = Path(args.labels) if args.labels else demo_dir / "labels.csv"
+        labels_file = Path(args.labels) if args.labels else demo_dir / LABELS_NAME
         origin = "labels file"
     provenance = extraction_provenance(demos, labels_file, origin, options, spec, args.percentile, args.margin)
     cs = extract_constraints(demos, windows, groups, percentile=args.percentile, margin=args.margin,
@@ -132,8 +135,8 @@ def cmd_constraints_extract(args: argparse.Namespace) -> int:
 
 def _describe(cs) -> str:
     """Bounds in degrees and volume fractions, one line per joint and segment."""
-    from dualarm.constraint_extraction import arm_volume_fractions
-    from dualarm.constraints import JOINT_COLUMNS
+    from dualarm.constraints.analysis import arm_volume_fractions
+    from dualarm.task import JOINT_COLUMNS
 
     vol = arm_volume_fractions(cs)
     lines = [f"constraint set '{cs.name}': {len(cs.segments)} segment(s)"]
@@ -147,9 +150,9 @@ def _describe(cs) -> str:
 
 def cmd_constraints_plot(args: argparse.Namespace) -> int:
     """Demonstrations' joint curves with the constraint bands."""
-    from dualarm.constraint_extraction import load_demo_dir
-    from dualarm.constraint_plots import plot_constraints
-    from dualarm.constraints import ConstraintSet
+    from dualarm.demos.loading import load_demo_dir
+    from dualarm.constraints.plots import plot_constraints
+    from dualarm.constraints.constraint_set import ConstraintSet
 
     _check_output(args.output, (".png", ".pdf", ".svg"))
     cs = ConstraintSet.load(args.constraints)
@@ -161,9 +164,9 @@ def cmd_constraints_plot(args: argparse.Namespace) -> int:
 
 def cmd_constraints_analyze(args: argparse.Namespace) -> int:
     """Volume fractions and the expert's share of steps inside, for one or more constraint files."""
-    from dualarm.constraint_extraction import (arm_volume_fractions, expert_inside_fractions, expert_rollouts,
-                                               width_fractions)
-    from dualarm.constraints import JOINT_COLUMNS, ConstraintSet
+    from dualarm.constraints.analysis import arm_volume_fractions, expert_inside_fractions, expert_rollouts
+    from dualarm.constraints.constraint_set import ConstraintSet
+    from dualarm.task import JOINT_COLUMNS
 
     sets = {}
     for path in args.constraints:
@@ -178,7 +181,7 @@ def cmd_constraints_analyze(args: argparse.Namespace) -> int:
           f"{len(q)} steps, success rate {success:.3f}")
     header = "joint".ljust(10) + "".join(f"{c:>10}" for c in JOINT_COLUMNS)
     for label, cs in sets.items():
-        vol, width, report = arm_volume_fractions(cs), width_fractions(cs), reports[label]
+        vol, width, report = arm_volume_fractions(cs), cs.width_fractions(), reports[label]
         for s, seg in enumerate(cs.segments):
             print(f"\n{label}: segment {s + 1} ({'+'.join(seg.subtasks)}): volume fraction of the joint box: "
                   f"left arm {vol[s, 0]:.2e}, right arm {vol[s, 1]:.2e}, both arms {cs.volume_fraction()[s]:.2e}")
@@ -189,7 +192,7 @@ def cmd_constraints_analyze(args: argparse.Namespace) -> int:
                   f"with all 7 joints inside: left {100 * report.all_joints[s, 0]:.1f}%, "
                   f"right {100 * report.all_joints[s, 1]:.1f}%")
     if args.output is not None:
-        from dualarm.constraint_plots import plot_expert_inside, plot_volume_fractions
+        from dualarm.constraints.plots import plot_expert_inside, plot_volume_fractions
 
         paths = [plot_volume_fractions(sets, args.output / "constraints_volume_fractions.png"),
                  plot_expert_inside(fractions, args.output / "constraints_expert_inside.png",
@@ -203,7 +206,7 @@ def cmd_constraints_analyze(args: argparse.Namespace) -> int:
 
 def add_demo_commands(sub) -> None:
     """Add the ``demos`` and ``constraints`` command groups to the top-level subparsers."""
-    from dualarm.constraint_extraction import DEFAULT_LOWPASS_HZ
+    from dualarm.demos.loading import DEFAULT_LOWPASS_HZ
 
     def demo_dir_argument(p: argparse.ArgumentParser, flag: bool = False) -> None:
         help_ = "folder of IMU recordings (.csv, .csv.gz, .sto, .mat); default: the shipped set of 10"
@@ -225,7 +228,7 @@ def add_demo_commands(sub) -> None:
 
     def labels_option(p: argparse.ArgumentParser) -> None:
         p.add_argument("--labels", type=InputPath, metavar="FILE.csv",
-                       help="labels file (demo,arm,subtask,start_s,end_s); default: DEMO_DIR/labels.csv")
+                       help=f"labels file (demo,arm,subtask,start_s,end_s); default: DEMO_DIR/{LABELS_NAME}")
 
     demos = sub.add_parser("demos", help="demonstration sets: generate, segment",
                            description="Demonstration sets of the reach-grasp-align task.")
@@ -245,7 +248,7 @@ def add_demo_commands(sub) -> None:
     seg = dsub.add_parser("segment", help="automatic sub-task segmentation (and agreement with labels)",
                           description="Find each arm's reach, grasp and align from the hand's motion "
                                       "(Baxter forward kinematics) and the gripper events when the recording "
-                                      "has left_grip/right_grip columns. With labels (DEMO_DIR/labels.csv or "
+                                      f"has left_grip/right_grip columns. With labels (DEMO_DIR/{LABELS_NAME} or "
                                       "--labels), print how well they agree.")
     demo_dir_argument(seg)
     labels_option(seg)

@@ -38,7 +38,7 @@ def _source_trajectory(args: argparse.Namespace):
 
 
 def _print_report(retimed) -> None:
-    from dualarm.constraints import JOINT_COLUMNS
+    from dualarm.task import JOINT_COLUMNS
 
     rep = retimed.report()
     print(f"time-parameterised: {rep['duration_s']:.3f} s (waypoints: {rep['source_duration_s']:.3f} s), "

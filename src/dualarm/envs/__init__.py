@@ -36,7 +36,7 @@ def make_core(config: TaskConfig | None = None, constraints=None, **overrides):
 
     ``constraints`` may be a ``ConstraintSet`` or the path of a constraints file.
     """
-    from dualarm.constraints import ConstraintSet
+    from dualarm.constraints.constraint_set import ConstraintSet
     from dualarm.envs.baxter import BaxterReachGraspAlign
 
     config = (config or TaskConfig()).with_(**overrides)

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from dualarm.constraints import ConstraintSet
+from dualarm.constraints.constraint_set import ConstraintSet
 from dualarm.envs.config import TaskConfig
 from dualarm.errors import InputError
 from dualarm.envs.scene import GRIP_DOWN_QUAT, REST_POSTURE, compiled_model

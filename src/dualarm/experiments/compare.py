@@ -326,7 +326,7 @@ def _constraint_copies(comparison: Comparison, given_dir: Path | None) -> dict[s
     """Constraint files to copy into ``root/constraints`` ({condition: source}), after
     checking that every guided condition has one and that ``given_dir`` agrees with the
     copies already made."""
-    from dualarm.constraints import ConstraintSet
+    from dualarm.constraints.constraint_set import ConstraintSet
 
     if comparison.constraints_dir is None:
         return {}

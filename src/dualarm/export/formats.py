@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from dualarm.atomic import atomic_open
-from dualarm.constraints import JOINT_COLUMNS
+from dualarm.task import JOINT_COLUMNS
 from dualarm.export.retime import Samples
 
 BAXTER_COLUMNS = ("time", *JOINT_COLUMNS[:7], "left_gripper", *JOINT_COLUMNS[7:], "right_gripper")

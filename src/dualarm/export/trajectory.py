@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from dualarm.atomic import atomic_open
-from dualarm.constraints import JOINT_COLUMNS
+from dualarm.task import JOINT_COLUMNS
 from dualarm.errors import InputError
 from dualarm.kinematics import BAXTER_JOINT_LIMITS
 

@@ -147,7 +147,7 @@ class TrainConfig:
         of the condition; None for "none"."""
         if self.condition == "none":
             return None
-        from dualarm.constraints import default_constraints_path
+        from dualarm.constraints.constraint_set import default_constraints_path
 
         return Path(self.constraints or default_constraints_path(self.condition))
 
@@ -156,7 +156,7 @@ class TrainConfig:
         path = self.constraints_file()
         if path is None:
             return None
-        from dualarm.constraints import ConstraintSet
+        from dualarm.constraints.constraint_set import ConstraintSet
 
         constraints = ConstraintSet.load(path)
         if self.condition == "single" and len(constraints.segments) != 1:

@@ -44,7 +44,7 @@ def default_constraints_path(condition: str) -> Path:
     """The shipped constraints file of a guided condition.
 
     Both were extracted (Eq. 12) from the shipped default demonstrations
-    (``dualarm.demos.DEFAULT_DEMO_DIR``): "single" is C1 (one segment, reach+grasp+align),
+    (``dualarm.demos.formats.DEFAULT_DEMO_DIR``): "single" is C1 (one segment, reach+grasp+align),
     "multi" is C2 (reach+grasp) and C3 (align); see docs/constraints.md.
 
     Args:
@@ -57,7 +57,7 @@ def default_constraints_path(condition: str) -> Path:
     if condition not in DEFAULT_CONDITIONS:
         raise ValueError(f"condition must be one of {', '.join(DEFAULT_CONDITIONS)} to have default "
                          f"constraints, got {condition!r}")
-    return Path(__file__).resolve().parent / "data" / "constraints" / f"{condition}.yaml"
+    return Path(__file__).resolve().parents[1] / "data" / "constraints" / f"{condition}.yaml"
 
 
 # --------------------------------------------------------------------------- helpers
@@ -421,24 +421,24 @@ class ConstraintSet:
         scale = np.stack(np.broadcast_arrays(c[sl], c[sr]), axis=-1)
         return scale * (2 * n - _N_ARM)
 
-    def volume_fraction(self, limits: Any = BAXTER_JOINT_LIMITS) -> np.ndarray:
-        """Fraction of the 14-D joint box (both arms) each segment's box occupies.
+    def width_fractions(self, limits: Any = BAXTER_JOINT_LIMITS) -> np.ndarray:
+        """Width of each segment's range over the width of the joint's limits.
 
         Args:
             limits: (7, 2) [lower, upper] per joint of one arm, used for both arms (rad), or
                 (14, 2) over ``JOINT_COLUMNS``. Default: Baxter's limits.
         Returns:
-            (n_segments,) in [0, 1]: product over joints of (segment width clipped to the
-            limits) / (limit width).
+            (n_segments, 14) in [0, 1]: (segment width clipped to the limits) / (limit width).
         """
         lim = _limits14(limits)
-        width = lim[:, 1] - lim[:, 0]
-        out = np.empty(len(self.segments))
-        for s, seg in enumerate(self.segments):
-            lo = np.clip(seg.lower, lim[:, 0], lim[:, 1])
-            up = np.clip(seg.upper, lim[:, 0], lim[:, 1])
-            out[s] = np.prod((up - lo) / width)
-        return out
+        lo = np.clip(np.stack([seg.lower for seg in self.segments]), lim[:, 0], lim[:, 1])
+        up = np.clip(np.stack([seg.upper for seg in self.segments]), lim[:, 0], lim[:, 1])
+        return (up - lo) / (lim[:, 1] - lim[:, 0])
+
+    def volume_fraction(self, limits: Any = BAXTER_JOINT_LIMITS) -> np.ndarray:
+        """(n_segments,) fraction of the 14-D joint box (both arms) each segment's box
+        occupies: the product of :meth:`width_fractions` over the joints."""
+        return self.width_fractions(limits).prod(axis=1)
 
     # ------------------------------------------------------------------ serialisation
 

@@ -35,18 +35,16 @@ capture session would, starting from motions that are known to solve the task:
    so they agree exactly with the environment's definition of the sub-tasks.
 
 Files (written by :func:`write_demo_set`, read by :func:`dualarm.mocap.io.read_recording`
-and :func:`dualarm.constraint_extraction.read_labels`): ``demo_00.csv.gz`` ... in the CSV
+and :func:`dualarm.demos.labels.read_labels`): ``demo_00.csv.gz`` ... in the CSV
 format of ``dualarm mocap joints`` (``time`` and ``S_qw..S_qz`` per sensor, six decimals)
 plus two columns ``left_grip, right_grip`` (1 while the hand is closed: the gripper events,
 as a glove, a button or a video annotation would give them; other readers ignore them),
-and ``labels.csv`` (see :mod:`dualarm.constraint_extraction`). Gzip headers carry no name or
+and ``labels.csv`` (see :mod:`dualarm.demos.labels`). Gzip headers carry no name or
 time stamp, so the same arguments give the same bytes.
 """
 
 from __future__ import annotations
 
-import gzip
-import io
 import os
 import sys
 from dataclasses import dataclass, field
@@ -57,21 +55,14 @@ from scipy.interpolate import CubicSpline, PchipInterpolator
 from scipy.signal import butter, sosfiltfilt
 
 from dualarm.atomic import atomic_open
+from dualarm.demos.formats import LABELS_NAME, QUAT_DECIMALS, demo_csv_text, gzip_bytes
+from dualarm.demos.labels import labels_csv_text
 from dualarm.errors import InputError
 from dualarm.kinematics import baxter_arm
 from dualarm.mocap.recording import SENSORS, Recording
 from dualarm.mocap.synthetic import random_mountings, sensor_quaternions
 from dualarm.task import JOINTS_PER_ARM
 
-#: The shipped default demonstration set (10 demonstrations, ``generate_demos(10, seed=0)``).
-DEFAULT_DEMO_DIR = Path(__file__).parent / "data" / "demos"
-#: Name of the labels file inside a demonstration folder.
-LABELS_NAME = "labels.csv"
-#: Columns of the gripper events in a demonstration CSV (1 = hand closed).
-GRIP_COLUMNS = ("left_grip", "right_grip")
-#: Decimal places of the quaternions in written demonstration files (quantisation 5e-7,
-#: far below the sensor noise).
-QUAT_DECIMALS = 6
 #: Number of demonstrations in the default set (the paper recorded 10).
 DEFAULT_COUNT = 10
 #: Seed of the default set.
@@ -441,41 +432,18 @@ def generate_demos(count: int = DEFAULT_COUNT, seed: int = DEFAULT_SEED, human: 
     return demos
 
 
-# --------------------------------------------------------------------------- files
-
-def _gzip_bytes(text: str) -> bytes:
-    """gzip of ``text`` (UTF-8) with no file name and time stamp 0 in the header: reproducible."""
-    buffer = io.BytesIO()
-    with gzip.GzipFile(filename="", fileobj=buffer, mode="wb", compresslevel=9, mtime=0) as gz:
-        gz.write(text.encode("utf-8"))
-    return buffer.getvalue()
-
-
-def demo_csv_text(rec: Recording, grip: np.ndarray) -> str:
-    """The CSV text of a demonstration: time, 24 quaternion columns, ``GRIP_COLUMNS``."""
-    header = ["time"] + [f"{s}_q{c}" for s in SENSORS for c in "wxyz"] + list(GRIP_COLUMNS)
-    buf = io.StringIO()
-    buf.write(",".join(header) + "\n")
-    data = np.hstack([rec.time[:, None]] + [rec.quat[s] for s in SENSORS] + [grip])
-    fmt = ",".join(["%.9g"] + [f"%.{QUAT_DECIMALS}f"] * (4 * len(SENSORS)) + ["%d"] * 2)
-    np.savetxt(buf, data, fmt=fmt)
-    return buf.getvalue()
-
-
 def write_demo_set(demos: list[Demonstration], out_dir: str | os.PathLike) -> list[Path]:
     """Write ``demo_XX.csv.gz`` per demonstration and ``labels.csv``, each atomically.
 
     Returns:
         the paths written, demonstrations first, labels last.
     """
-    from dualarm.constraint_extraction import labels_csv_text
-
     out = Path(out_dir)
     paths = []
     for d in demos:
         path = out / f"{d.name}.csv.gz"
         with atomic_open(path) as f:
-            f.write(_gzip_bytes(demo_csv_text(d.recording, d.grip)))
+            f.write(gzip_bytes(demo_csv_text(d.recording, d.grip)))
         paths.append(path)
     path = out / LABELS_NAME
     with atomic_open(path) as f:

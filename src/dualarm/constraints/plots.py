@@ -13,8 +13,10 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from dualarm.constraint_extraction import DemoJoints, arm_volume_fractions, width_fractions
-from dualarm.constraints import JOINT_COLUMNS, SUBTASKS, ConstraintSet
+from dualarm.constraints.analysis import arm_volume_fractions
+from dualarm.demos.loading import DemoJoints
+from dualarm.constraints.constraint_set import ConstraintSet
+from dualarm.task import JOINT_COLUMNS, SUBTASKS
 from dualarm.kinematics import ARMS, BAXTER_JOINT_NAMES
 from dualarm.mocap.plots import ARM_COLOURS, save_figure
 from dualarm.task import JOINTS_PER_ARM
@@ -115,7 +117,7 @@ def plot_volume_fractions(sets: Mapping[str, ConstraintSet], path: str | os.Path
         path: output PNG.
     """
     rows = [(label, s, seg) for label, cs in sets.items() for s, seg in enumerate(cs.segments)]
-    widths = np.concatenate([width_fractions(cs) for cs in sets.values()])          # (R, 14)
+    widths = np.concatenate([cs.width_fractions() for cs in sets.values()])          # (R, 14)
     volumes = np.concatenate([arm_volume_fractions(cs) for cs in sets.values()])    # (R, 2)
     names = [f"{label}: {'+'.join(seg.subtasks)}" for label, _, seg in rows]
     fig = Figure(figsize=(12.0, 7.5), layout="constrained")

@@ -1,0 +1,1 @@
+"""Joint-angle constraints: the ConstraintSet, Eq. 12 extraction, analysis, plots."""

@@ -1,0 +1,1 @@
+"""Demonstration sets: file formats and labels, generation, loading, segmentation."""
