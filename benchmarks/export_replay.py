@@ -22,7 +22,7 @@ import numpy as np
 from tqdm import tqdm
 
 from dualarm.atomic import atomic_open
-from dualarm.cli_train import policy_episode
+from dualarm.training.policy import policy_episode
 from dualarm.export.plots import plot_retimed
 from dualarm.export.replay import replay
 from dualarm.export.retime import retime

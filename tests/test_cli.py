@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 import scipy.io
 
-from dualarm.cli import EXAMPLE_RECORDING, main
+from dualarm.cli.main import main
+from dualarm.cli.quickstart import EXAMPLE_RECORDING
 from dualarm.kinematics import BAXTER_JOINT_LIMITS
 from dualarm.mocap.io import read_recording, write_csv, write_sto
 from dualarm.mocap.joint_angles import JOINT_COLUMNS
@@ -162,7 +163,7 @@ def test_installed_entry_point_reports_errors_without_traceback(tmp_path):
     """The real `dualarm` process: exit status 2 and a single stderr line."""
     bad = tmp_path / "bad.csv"
     bad.write_text("time,foo\n0,1\n")
-    proc = subprocess.run([sys.executable, "-m", "dualarm.cli", "mocap", "joints", str(bad), "-o",
+    proc = subprocess.run([sys.executable, "-m", "dualarm.cli.main", "mocap", "joints", str(bad), "-o",
                            str(tmp_path / "o.csv")], capture_output=True, text=True)
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr and "left_upper_arm" in proc.stderr
@@ -171,8 +172,8 @@ def test_installed_entry_point_reports_errors_without_traceback(tmp_path):
 def test_shipped_example_is_the_generator_output():
     shipped, regenerated = read_recording(EXAMPLE_RECORDING), example_recording()
     np.testing.assert_array_equal(shipped.time, regenerated.time)
-    for s in SENSORS:
-        np.testing.assert_array_equal(shipped.quat[s], regenerated.quat[s])
+    for s in SENSORS:   # NumPy 1.26 and 2.x round a few quaternions 1 ulp apart
+        np.testing.assert_allclose(shipped.quat[s], regenerated.quat[s], rtol=0, atol=1e-12)
 
 
 def test_quickstart_writes_tables_and_figures(tmp_path, capsys):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import yaml
 
-from dualarm.cli import main
+from dualarm.cli.main import main
 
 SMALL = {"algo": {"hidden": [16, 16], "batch_size": 32, "warmup_steps": 100, "buffer_size": 5000},
          "eval_episodes": 4, "task": {"max_episode_steps": 10}}

@@ -9,7 +9,7 @@ import shutil
 import pytest
 import yaml
 
-from dualarm.cli import main
+from dualarm.cli.main import main
 from dualarm.constraints.constraint_set import default_constraints_path
 from dualarm.errors import InputError
 from dualarm.experiments.backends import RayBackend, execute, read_done

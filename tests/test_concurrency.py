@@ -18,7 +18,7 @@ TINY = ("num_envs: 2\nepisodes: 400\neval_every: 0\ncheckpoint_minutes: 0.01\n"
 
 
 def dualarm(*args: str, cwd: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "dualarm.cli", *args], cwd=cwd,
+    return subprocess.Popen([sys.executable, "-m", "dualarm.cli.main", *args], cwd=cwd,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from dualarm.cli import main
+from dualarm.cli.main import main
 from dualarm.constraints.analysis import arm_volume_fractions, expert_inside_fractions
 from dualarm.constraints.extraction import (combine_ranges, demo_ranges, extract_constraints,
                                             extraction_provenance, segment_masks)

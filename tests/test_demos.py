@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from dualarm.cli import main
+from dualarm.cli.main import main
 from dualarm.constraints.extraction import extract_constraints
 from dualarm.demos.formats import read_grip_events
 from dualarm.demos.labels import read_labels

@@ -7,7 +7,7 @@ import csv
 import numpy as np
 import pytest
 
-from dualarm.cli import main
+from dualarm.cli.main import main
 from dualarm.envs.baxter import BaxterReachGraspAlign, home_posture
 from dualarm.envs.config import TaskConfig
 from dualarm.envs.rollout import make_policy, run_episode

@@ -19,7 +19,7 @@ from typing import Callable
 
 import pytest
 
-from dualarm.cli import main
+from dualarm.cli.main import main
 from dualarm.constraints.constraint_set import default_constraints_path
 from dualarm.locks import LOCK_NAME, DirectoryLock
 from dualarm.mocap.io import write_csv
@@ -268,7 +268,7 @@ def test_a_run_resumes_from_anywhere_after_being_moved(world, tmp_path, monkeypa
 def test_the_command_line_knows_every_file_of_a_run_directory(world):
     """cli_types spells out a run directory's own names (to keep torch out of its imports):
     they must be RunPaths' names, and the done marker's."""
-    from dualarm.cli_types import RUN_FILES, RUN_FOLDERS
+    from dualarm.cli.arguments import RUN_FILES, RUN_FOLDERS
     from dualarm.experiments.backends import DONE_MARKER
     from dualarm.training.run_dir import RunPaths
 

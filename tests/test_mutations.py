@@ -11,7 +11,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from dualarm.cli import main
+from dualarm.cli.main import main
 from dualarm.demos.labels import read_labels
 from dualarm.constraints.constraint_set import ConstraintSet, default_constraints_path
 from dualarm.errors import DualarmError

@@ -2,7 +2,7 @@
 
 import yaml
 
-from dualarm.cli import main
+from dualarm.cli.main import main
 from dualarm.constraints.constraint_set import ConstraintSet
 from dualarm.experiments.compare import load_manifest
 

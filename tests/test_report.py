@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from dualarm.cli import main
+from dualarm.cli.main import main
 from dualarm.errors import InputError
 from dualarm.experiments.metrics import (condition_ratios, convergence, episodes_to_target,
                                          max_average, mean_ci, ratio, trailing_mean)

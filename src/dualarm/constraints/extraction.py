@@ -16,9 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from dualarm.constraints.constraint_set import ConstraintSet, parse_segments
-from dualarm.demos.formats import file_sha256
+from dualarm.demos.formats import DEFAULT_DEMO_DIR, LABELS_NAME, file_sha256
 from dualarm.demos.labels import DemoLabels
-from dualarm.demos.loading import DemoJoints, MappingOptions
+from dualarm.demos.loading import DemoJoints, MappingOptions, load_demo_dir
+from dualarm.demos.segmentation import segment_demo
 from dualarm.errors import InputError
 from dualarm.kinematics import BAXTER_JOINT_LIMITS
 from dualarm.task import ARMS, JOINTS_PER_ARM, SUBTASKS
@@ -161,3 +162,43 @@ def extraction_provenance(demos: Sequence[DemoJoints], labels_file: str | os.Pat
     if labels_file is not None:
         prov["labels"].update({"file": Path(labels_file).name, "sha256": file_sha256(labels_file)})
     return prov
+
+
+def constraints_from_folder(demo_dir: str | os.PathLike | None, segments: str, *, name: str | None = None,
+                            labels_path: str | os.PathLike | None = None,
+                            options: MappingOptions = MappingOptions(), percentile: float = 0.0,
+                            margin: float = 0.0, auto_segment: bool = False, use_grip: bool = True,
+                            progress: bool = False) -> ConstraintSet:
+    """A folder of demonstrations -> its constraints (Eq. 12), with their provenance.
+
+    What ``dualarm constraints extract`` and ``dualarm pipeline`` do.
+
+    Args:
+        demo_dir: folder of recordings; None for the shipped set (``DEFAULT_DEMO_DIR``).
+        segments: sub-tasks per segment, e.g. "reach+grasp+align" (C1) or "reach+grasp,align"
+            (C2 and C3).
+        name: name of the set (default: single or multi, by the number of segments).
+        labels_path: labels file; default ``demo_dir/LABELS_NAME``.
+        options: how recordings become joint angles.
+        percentile, margin: see :func:`extract_constraints` (margin in rad).
+        auto_segment: sub-task times from :func:`segment_demo` instead of a labels file,
+            with the recordings' gripper events unless ``use_grip`` is False.
+        progress: a progress bar over the recordings.
+    """
+    groups = parse_segments(segments)
+    spec = segments_spec(groups)
+    folder = Path(demo_dir) if demo_dir is not None else DEFAULT_DEMO_DIR
+    demos, labels = load_demo_dir(folder, labels_path, options, require_labels=not auto_segment,
+                                  with_grip=auto_segment, progress=progress)
+    if auto_segment:
+        calib_end = options.calib_start + options.calib_seconds
+        windows = {d.name: segment_demo(d.time, d.q, d.grip if use_grip else None, calib_end_s=calib_end,
+                                        demo=d.name) for d in demos}
+        labels_file, origin = None, "automatic segmentation (dualarm.demos.segmentation.segment_demo)"
+    else:
+        windows = {n: lab.windows for n, lab in labels.items()}
+        labels_file = Path(labels_path) if labels_path else folder / LABELS_NAME
+        origin = "labels file"
+    provenance = extraction_provenance(demos, labels_file, origin, options, spec, percentile, margin)
+    return extract_constraints(demos, windows, groups, percentile=percentile, margin=margin, name=name,
+                               provenance=provenance)

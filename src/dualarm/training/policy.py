@@ -50,3 +50,20 @@ def load_policy(run_dir: str | Path, which: str = "best") -> tuple[TrainConfig, 
 def single_env_policy(agent: DADDPG):
     """The deterministic policy as a callable obs (2, O) -> actions (2, U) for one env."""
     return lambda obs: agent.act(np.asarray(obs)[None])[0]
+
+
+def policy_episode(run: Path, checkpoint: str, seed: int, camera: str | None = None,
+                   size: tuple[int, int] | None = None):
+    """One episode of a run's deterministic policy from ``reset(seed)``.
+    Returns (env, episode, checkpoint info)."""
+    from dualarm.envs.baxter import BaxterReachGraspAlign
+    from dualarm.envs.rollout import run_episode
+    from dualarm.training.policy import load_policy, single_env_policy
+
+    config, agent, info = load_policy(run, checkpoint)
+    env = BaxterReachGraspAlign(config.task_config(), config.load_constraints())
+    if size:
+        env.render_size = size
+    episode = run_episode(env, single_env_policy(agent), seed, camera=camera)
+    env.close()
+    return env, episode, info

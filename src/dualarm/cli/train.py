@@ -1,4 +1,4 @@
-"""`dualarm train | eval | play`: learn the task, and use what was learned."""
+"""`dualarm train`: learn the task (start a run, or resume one)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-
-from dualarm.cli_types import InputPath, OutputDir, OutputFile, positive_int
+from dualarm.cli.arguments import InputPath, OutputDir, positive_int
 from dualarm.errors import InputError
 from dualarm.task import CONDITIONS
 
@@ -56,59 +55,8 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_eval(args: argparse.Namespace) -> int:
-    """Success rate and mean return of a run's policy on the fixed evaluation episodes."""
-    from dualarm.training.evaluation import evaluate
-    from dualarm.training.loop import make_vector_env
-    from dualarm.training.policy import load_policy
-
-    config, agent, info = load_policy(args.run, args.checkpoint)
-    vec = make_vector_env(config, min(config.num_envs, args.episodes))
-    result = evaluate(lambda o: agent.act(o), vec, args.episodes)
-    print(f"{info['checkpoint']} (after {info['episodes']} training episodes), "
-          f"{args.episodes} evaluation episodes:")
-    print(f"  success rate  {result.success_rate:.3f} ({int(result.success.sum())}/{args.episodes})")
-    print(f"  return        {result.mean_return:.1f} (mean, both arms)")
-    print(f"  steps         {result.steps.mean():.1f} (mean)")
-    return 0
-
-
-def policy_episode(run: Path, checkpoint: str, seed: int, camera: str | None = None,
-                   size: tuple[int, int] | None = None):
-    """One episode of a run's deterministic policy from ``reset(seed)``.
-    Returns (env, episode, checkpoint info)."""
-    from dualarm.envs.baxter import BaxterReachGraspAlign
-    from dualarm.envs.rollout import run_episode
-    from dualarm.training.policy import load_policy, single_env_policy
-
-    config, agent, info = load_policy(run, checkpoint)
-    env = BaxterReachGraspAlign(config.task_config(), config.load_constraints())
-    if size:
-        env.render_size = size
-    episode = run_episode(env, single_env_policy(agent), seed, camera=camera)
-    env.close()
-    return env, episode, info
-
-
-def cmd_play(args: argparse.Namespace) -> int:
-    """Render an episode of the learned policy to MP4 or GIF."""
-    from dualarm.cli_env import with_end_pause
-    from dualarm.envs.rendering import write_video
-
-    env, episode, info = policy_episode(args.run, args.checkpoint, args.seed, args.camera,
-                                           (args.height, args.width))
-    frames = with_end_pause(episode.frames, args.fps)
-    path = write_video(args.output, frames, fps=args.fps)
-    print(f"{info['checkpoint']}: seed {args.seed}, {'success' if episode.success else 'failure'} in "
-          f"{episode.steps} steps, returns left {episode.returns[0]:.1f} right {episode.returns[1]:.1f}")
-    print(f"wrote {path} ({len(frames)} frames)")
-    return 0
-
-
-def add_train_commands(sub) -> None:
-    """Add ``train``, ``eval`` and ``play`` to the top-level subparsers."""
-    from dualarm.cli_env import frame_options
-
+def add_train_command(sub) -> None:
+    """Add ``train`` to the top-level subparsers."""
     train = sub.add_parser("train", help="train DADDPG on the Baxter task (resumable)",
                            description="Train the dual-agent DDPG on the reach-grasp-align task. "
                                        "Writes config.yaml, metrics.csv, eval.csv, TensorBoard "
@@ -128,23 +76,3 @@ def add_train_commands(sub) -> None:
     train.add_argument("--resume", type=InputPath, metavar="DIR",
                        help="continue the run in DIR from its last checkpoint")
     train.set_defaults(func=cmd_train)
-
-    def run_options(p: argparse.ArgumentParser) -> None:
-        p.add_argument("run", type=InputPath, metavar="DIR", help="a run directory of dualarm train")
-        p.add_argument("--checkpoint", choices=("best", "latest"), default="best",
-                       help="the best evaluated policy or the last checkpoint (default: best)")
-
-    ev = sub.add_parser("eval", help="success rate and return of a trained policy",
-                        description="Evaluate a run's policy on the fixed set of evaluation episodes.")
-    run_options(ev)
-    ev.add_argument("--episodes", type=int, default=100)
-    ev.set_defaults(func=cmd_eval)
-
-    play = sub.add_parser("play", help="render the learned policy to MP4 or GIF",
-                          description="Render one episode of a run's policy.")
-    run_options(play)
-    play.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.mp4")
-    play.add_argument("--seed", type=int, default=0)
-    frame_options(play)
-    play.add_argument("--fps", type=float, default=12.0)
-    play.set_defaults(func=cmd_play)

@@ -1,19 +1,14 @@
-"""The `dualarm` command: subcommands for each stage of the pipeline."""
+"""`dualarm mocap joints | plot | example`: IMU recordings -> human joint angles -> Baxter joints."""
 
 from __future__ import annotations
 
 import argparse
 import sys
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from dualarm import __version__
-from dualarm.cli_types import InputPath, OutputDir, OutputFile, check_paths, option_names
-from dualarm.errors import DualarmError
-
-EXAMPLE_RECORDING = Path(__file__).parent / "data" / "example_recording.csv.gz"
+from dualarm.cli.arguments import InputPath, OutputDir, OutputFile
 
 
 def _seconds(allow_zero: bool):
@@ -29,8 +24,7 @@ def _seconds(allow_zero: bool):
         return value
     return parse
 
-
-def _summary(result, rec) -> str:
+def mapping_summary(result, rec) -> str:
     """A few human-readable lines about a mapping result."""
     from dualarm.task import JOINT_COLUMNS
     from dualarm.mocap.joint_angles import RESIDUAL_COLUMNS
@@ -57,8 +51,7 @@ def _summary(result, rec) -> str:
         lines.append("clipped to Baxter's limits: none")
     return "\n".join(lines)
 
-
-def _map_file(path: Path, args: argparse.Namespace):
+def map_file(path: Path, args: argparse.Namespace):
     from dualarm.mocap.io import read_recording
     from dualarm.mocap.mapping import map_recording
 
@@ -66,30 +59,27 @@ def _map_file(path: Path, args: argparse.Namespace):
     return rec, map_recording(rec, calib_seconds=args.calib_seconds, calib_start=args.calib_start,
                               heading=args.heading)
 
-
-def _write_joint_table(path: Path, time: np.ndarray, q: np.ndarray) -> None:
+def write_joint_table(path: Path, time: np.ndarray, q: np.ndarray) -> None:
     from dualarm.mocap.io import write_table_csv
     from dualarm.mocap.joint_angles import JOINT_COLUMNS
 
     write_table_csv(path, ["time", *JOINT_COLUMNS], np.column_stack([time, q]))
 
-
 def cmd_mocap_joints(args: argparse.Namespace) -> int:
-    rec, result = _map_file(args.input, args)
+    rec, result = map_file(args.input, args)
     q = result.robot.q if args.robot else result.joints.q
-    _write_joint_table(args.output, result.joints.time, q)
+    write_joint_table(args.output, result.joints.time, q)
     if args.residuals:
         from dualarm.mocap.io import write_table_csv
         from dualarm.mocap.joint_angles import RESIDUAL_COLUMNS
         write_table_csv(args.residuals, ["time", *RESIDUAL_COLUMNS],
                         np.column_stack([result.joints.time, result.joints.residual]))
     if not args.quiet:
-        print(_summary(result, rec), file=sys.stderr)
+        print(mapping_summary(result, rec), file=sys.stderr)
         print(f"wrote {args.output} ({'Baxter' if args.robot else 'human'} joint angles, rad)", file=sys.stderr)
     return 0
 
-
-def _write_figures(out: Path, rec, result, instants_s: list[float] | None) -> list[Path]:
+def write_figures(out: Path, rec, result, instants_s: list[float] | None) -> list[Path]:
     from dualarm.kinematics import BAXTER_JOINT_LIMITS
     from dualarm.mocap import plots
 
@@ -114,13 +104,11 @@ def _write_figures(out: Path, rec, result, instants_s: list[float] | None) -> li
                              heading_estimates=result.heading),
     ]
 
-
 def cmd_mocap_plot(args: argparse.Namespace) -> int:
-    rec, result = _map_file(args.input, args)
-    for path in _write_figures(args.output, rec, result, args.instants):
+    rec, result = map_file(args.input, args)
+    for path in write_figures(args.output, rec, result, args.instants):
         print(f"wrote {path}", file=sys.stderr)
     return 0
-
 
 def cmd_mocap_example(args: argparse.Namespace) -> int:
     from dualarm.mocap.io import write_csv
@@ -130,28 +118,11 @@ def cmd_mocap_example(args: argparse.Namespace) -> int:
     print(f"wrote {args.output}", file=sys.stderr)
     return 0
 
-
-def cmd_quickstart(args: argparse.Namespace) -> int:
-    """Map the built-in example recording and write tables and figures."""
-    out: Path = args.output
-    out.mkdir(parents=True, exist_ok=True)
-    defaults = argparse.Namespace(calib_seconds=1.0, calib_start=0.0, heading="auto", sensor_map=None)
-    rec, result = _map_file(EXAMPLE_RECORDING, defaults)
-    _write_joint_table(out / "human_joint_angles.csv", result.joints.time, result.joints.q)
-    _write_joint_table(out / "baxter_joint_angles.csv", result.joints.time, result.robot.q)
-    figures = _write_figures(out, rec, result, None)
-    print(_summary(result, rec))
-    print(f"wrote {out / 'human_joint_angles.csv'}, {out / 'baxter_joint_angles.csv'} and "
-          f"{len(figures)} figures in {out}/")
-    return 0
-
-
 def _name_map(text: str) -> dict[str, str]:
     pairs = [item.split("=", 1) for item in text.split(",") if item.strip()]
     if not pairs or any(len(p) != 2 or not p[0].strip() or not p[1].strip() for p in pairs):
         raise argparse.ArgumentTypeError(f"expected NAME=SENSOR pairs separated by commas, got {text!r}")
     return {name.strip(): sensor.strip() for name, sensor in pairs}
-
 
 def _comma_floats(text: str) -> list[float]:
     try:
@@ -160,20 +131,8 @@ def _comma_floats(text: str) -> list[float]:
         raise argparse.ArgumentTypeError(f"expected comma-separated seconds, got {text!r}") from None
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="dualarm",
-        description="Human IMU demonstrations -> joint-angle constraints -> dual-arm reinforcement learning.")
-    parser.add_argument("--version", action="version", version=f"dualarm {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-
-    quick = sub.add_parser("quickstart", help="map the built-in example recording (tables and figures)",
-                           description="Map the built-in example IMU recording to human and Baxter joint "
-                                       "angles, and write the tables and figures.")
-    quick.add_argument("-o", "--output", type=OutputDir, default=Path("out/quickstart"),
-                       help="output directory (default: out/quickstart)")
-    quick.set_defaults(func=cmd_quickstart)
-
+def add_mocap_command(sub) -> None:
+    """Add the ``mocap`` command group to the top-level subparsers."""
     mocap = sub.add_parser("mocap", help="IMU recordings -> joint angles",
                            description="IMU recordings of both arms -> human joint angles -> Baxter joints.")
     msub = mocap.add_subparsers(dest="mocap_command", required=True, metavar="COMMAND")
@@ -217,42 +176,3 @@ def build_parser() -> argparse.ArgumentParser:
                               description="Regenerate the built-in example recording (deterministic).")
     example.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.csv")
     example.set_defaults(func=cmd_mocap_example)
-
-    from dualarm.cli_env import add_env_commands
-    add_env_commands(sub)
-    from dualarm.cli_demos import add_demo_commands
-    add_demo_commands(sub)
-    from dualarm.cli_train import add_train_commands
-    add_train_commands(sub)
-    from dualarm.cli_export import add_export_command
-    add_export_command(sub)
-    from dualarm.cli_report import add_report_commands
-    add_report_commands(sub)
-    from dualarm.cli_experiments import add_compare_commands
-    add_compare_commands(sub)
-    from dualarm.cli_pipeline import add_pipeline_commands
-    add_pipeline_commands(sub)
-    return parser
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Entry point: parse ``argv``, run the subcommand, turn expected errors into one line."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    try:
-        check_paths(args, option_names(parser))
-        with warnings.catch_warnings():
-            warnings.simplefilter("default")
-            warnings.showwarning = lambda message, *_a, **_k: print(f"dualarm: warning: {message}",
-                                                                    file=sys.stderr)
-            return args.func(args)
-    except DualarmError as exc:
-        print(f"dualarm: error: {exc}", file=sys.stderr)
-        return 2
-    except OSError as exc:
-        print(f"dualarm: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":
-    sys.exit(main())

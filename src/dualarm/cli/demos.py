@@ -1,0 +1,136 @@
+"""`dualarm demos generate | segment`: demonstration sets, and the options the constraints
+commands share with them (demonstration folder, labels, mapping)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from dualarm.cli.arguments import InputPath, OutputDir, OutputFile, non_negative, positive_int
+from dualarm.demos.formats import DEFAULT_DEMO_DIR, LABELS_NAME
+from dualarm.demos.loading import DEFAULT_LOWPASS_HZ, MappingOptions
+from dualarm.errors import InputError
+
+
+def demo_dir_of(args: argparse.Namespace) -> Path:
+    return Path(args.demo_dir) if args.demo_dir is not None else DEFAULT_DEMO_DIR
+
+def mapping_options_of(args: argparse.Namespace):
+    return MappingOptions(calib_seconds=args.calib_seconds, calib_start=args.calib_start, heading=args.heading,
+                          lowpass_hz=args.lowpass_hz)
+
+def auto_windows(demos, args) -> dict[str, np.ndarray]:
+    from dualarm.demos.segmentation import segment_demo
+
+    calib_end = args.calib_start + args.calib_seconds
+    return {d.name: segment_demo(d.time, d.q, None if args.no_grip else d.grip, calib_end_s=calib_end,
+                                 demo=d.name) for d in demos}
+
+def check_suffix(path: Path, suffixes: tuple[str, ...]) -> None:
+    if not path.name.lower().endswith(suffixes):
+        raise InputError(f"output must end in {' or '.join(suffixes)}", source=str(path))
+
+def cmd_demos_generate(args: argparse.Namespace) -> int:
+    """Generate a demonstration set (IMU CSVs and labels) from the scripted expert."""
+    from dualarm.demos.generate import generate_demos, write_demo_set
+
+    out = Path(args.output)
+    demos = generate_demos(args.count, args.seed, progress=not args.quiet)
+    paths = write_demo_set(demos, out)
+    if not args.quiet:
+        for d in demos:
+            print(f"{d.name}: env seed {d.env_seed}, {d.time[-1]:.2f} s, {len(d.time)} samples", file=sys.stderr)
+        print(f"wrote {len(paths) - 1} recordings and {paths[-1].name} in {out}/", file=sys.stderr)
+    return 0
+
+def cmd_demos_segment(args: argparse.Namespace) -> int:
+    """Segment demonstrations automatically; compare with labels when there are any."""
+    from dualarm.demos.labels import read_labels, write_labels
+    from dualarm.demos.loading import load_demo_dir
+    from dualarm.demos.segmentation import segmentation_agreement
+
+    if args.output:
+        check_suffix(args.output, (".csv",))
+    demo_dir = demo_dir_of(args)
+    demos, _ = load_demo_dir(demo_dir, options=mapping_options_of(args), require_labels=False, with_grip=True)
+    auto = auto_windows(demos, args)
+    labels_path = Path(args.labels) if args.labels else demo_dir / LABELS_NAME
+    if args.labels or labels_path.exists():
+        labels = read_labels(labels_path)
+        errors, agree = [], []
+        print("demo      boundary |auto - label| [s] per arm: reach start, grasp start, align start, "
+              "align end   frames agreeing")
+        for d in demos:
+            if d.name not in labels:
+                continue
+            r = segmentation_agreement(d.time, auto[d.name], labels[d.name].windows)
+            errors.append(r["boundary_error_s"])
+            agree.append(r["frame_agreement"])
+            e = r["boundary_error_s"]
+            print(f"{d.name:<9} left {' '.join(f'{x:.3f}' for x in e[0])}  right "
+                  f"{' '.join(f'{x:.3f}' for x in e[1])}   {100 * r['frame_agreement'].mean():.1f}%")
+        if errors:
+            e = np.stack(errors)
+            print(f"mean      {' '.join(f'{x:.3f}' for x in e.mean(axis=(0, 1)))} (both arms)   "
+                  f"{100 * np.mean(agree):.1f}%")
+            print(f"max       {' '.join(f'{x:.3f}' for x in e.max(axis=(0, 1)))}")
+    if args.output:
+        write_labels(args.output, auto)
+        print(f"wrote {args.output}", file=sys.stderr)
+    return 0
+
+
+def demo_dir_argument(p: argparse.ArgumentParser, flag: bool = False) -> None:
+    help_ = "folder of IMU recordings (.csv, .csv.gz, .sto, .mat); default: the shipped set of 10"
+    if flag:
+        p.add_argument("--demos", dest="demo_dir", type=InputPath, metavar="DIR", help=help_)
+    else:
+        p.add_argument("demo_dir", type=InputPath, nargs="?", metavar="DEMO_DIR", help=help_)
+
+def mapping_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--calib-seconds", type=non_negative, default=1.0, metavar="S",
+                   help="zero-pose calibration window, s (default: 1.0)")
+    p.add_argument("--calib-start", type=non_negative, default=0.0, metavar="S",
+                   help="start of the calibration window, s after the first sample (default: 0)")
+    p.add_argument("--heading", choices=("auto", "off"), default="auto",
+                   help="heading-offset correction of the mapping (default: auto)")
+    p.add_argument("--lowpass-hz", type=non_negative, default=DEFAULT_LOWPASS_HZ, metavar="HZ",
+                   help=f"zero-phase low-pass cut-off on the joint angles, 0 for none "
+                        f"(default: {DEFAULT_LOWPASS_HZ:g})")
+
+def labels_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--labels", type=InputPath, metavar="FILE.csv",
+                   help=f"labels file (demo,arm,subtask,start_s,end_s); default: DEMO_DIR/{LABELS_NAME}")
+
+
+def add_demos_command(sub) -> None:
+    """Add the ``demos`` command group to the top-level subparsers."""
+    demos = sub.add_parser("demos", help="demonstration sets: generate, segment",
+                           description="Demonstration sets of the reach-grasp-align task.")
+    dsub = demos.add_subparsers(dest="demos_command", required=True, metavar="COMMAND")
+    gen = dsub.add_parser("generate", help="make IMU demonstrations from the scripted expert",
+                          description="Run the scripted expert at seeded placements, add human variability "
+                                      "(speed, timing, elbow swivel, tremor) and write six-sensor IMU "
+                                      "recordings (random mountings, noise, a zero-pose window) with "
+                                      "sub-task labels. The same --count and --seed give the same bytes; "
+                                      "--count 10 --seed 0 is the shipped set.")
+    gen.add_argument("-o", "--output", type=OutputDir, required=True, metavar="DIR")
+    gen.add_argument("--count", type=positive_int, default=10, help="number of demonstrations (default: 10)")
+    gen.add_argument("--seed", type=int, default=0, help="seed (default: 0)")
+    gen.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    gen.set_defaults(func=cmd_demos_generate)
+
+    seg = dsub.add_parser("segment", help="automatic sub-task segmentation (and agreement with labels)",
+                          description="Find each arm's reach, grasp and align from the hand's motion "
+                                      "(Baxter forward kinematics) and the gripper events when the recording "
+                                      f"has left_grip/right_grip columns. With labels (DEMO_DIR/{LABELS_NAME} or "
+                                      "--labels), print how well they agree.")
+    demo_dir_argument(seg)
+    labels_option(seg)
+    mapping_options(seg)
+    seg.add_argument("--no-grip", action="store_true", help="ignore gripper-event columns")
+    seg.add_argument("-o", "--output", type=OutputFile, metavar="FILE.csv", help="write the automatic labels")
+    seg.set_defaults(func=cmd_demos_segment)

@@ -1,0 +1,33 @@
+"""`dualarm eval`: success rate and return of a run's policy on the fixed evaluation episodes."""
+
+from __future__ import annotations
+
+import argparse
+
+from dualarm.cli.arguments import run_options
+
+
+def cmd_eval(args: argparse.Namespace) -> int:
+    """Success rate and mean return of a run's policy on the fixed evaluation episodes."""
+    from dualarm.training.evaluation import evaluate
+    from dualarm.training.loop import make_vector_env
+    from dualarm.training.policy import load_policy
+
+    config, agent, info = load_policy(args.run, args.checkpoint)
+    vec = make_vector_env(config, min(config.num_envs, args.episodes))
+    result = evaluate(lambda o: agent.act(o), vec, args.episodes)
+    print(f"{info['checkpoint']} (after {info['episodes']} training episodes), "
+          f"{args.episodes} evaluation episodes:")
+    print(f"  success rate  {result.success_rate:.3f} ({int(result.success.sum())}/{args.episodes})")
+    print(f"  return        {result.mean_return:.1f} (mean, both arms)")
+    print(f"  steps         {result.steps.mean():.1f} (mean)")
+    return 0
+
+
+def add_eval_command(sub) -> None:
+    """Add ``eval`` to the top-level subparsers."""
+    ev = sub.add_parser("eval", help="success rate and return of a trained policy",
+                        description="Evaluate a run's policy on the fixed set of evaluation episodes.")
+    run_options(ev)
+    ev.add_argument("--episodes", type=int, default=100)
+    ev.set_defaults(func=cmd_eval)

@@ -1,0 +1,49 @@
+"""`dualarm report`: the figures and tables of a comparison (paper Figs. 6-8)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from dualarm.cli.arguments import InputPath, OutputDir, positive_int, rate
+from dualarm.task import TARGET_SUCCESS
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """Write the report and print one line per condition."""
+    from dualarm.experiments.report import build_report, save_report
+
+    report = build_report(args.dir, args.window, args.target)
+    print_report(report, save_report(report, args.output or args.dir / "report"))
+    return 0
+
+
+def print_report(report, index) -> None:
+    """One line per condition on stdout, the report's notes on stderr, and where it is."""
+    from dualarm.experiments.report import summary_rows
+
+    header, rows = summary_rows(report)
+    for row in rows:
+        print("; ".join(f"{h}: {v}" for h, v in zip(header[:8], row[:8])))
+    for note in report.notes:
+        print(f"note: {note}", file=sys.stderr)
+    print(f"wrote {index} (figures, table.md and table.csv beside it)")
+
+
+def add_report_command(sub) -> None:
+    """Add ``report`` to the top-level subparsers."""
+    report = sub.add_parser(
+        "report", help="figures and tables of a comparison (paper Figs. 6-8)",
+        description="Read the training run directories under DIR (config.yaml + metrics.csv, "
+                    "up to two levels deep) and write the average return (Fig. 6), success "
+                    "(Fig. 7) and time-to-convergence (Fig. 8) figures, table.md, table.csv "
+                    "and index.html, with mean and 95%% confidence interval over seeds and the "
+                    "paper's values beside them.")
+    report.add_argument("dir", type=InputPath, metavar="DIR", help="comparison directory")
+    report.add_argument("-o", "--output", type=OutputDir, metavar="OUT",
+                        help="output directory (default: DIR/report)")
+    report.add_argument("--window", type=positive_int, default=100, metavar="N",
+                        help="moving-average window, episodes (default: 100)")
+    report.add_argument("--target", type=rate, default=TARGET_SUCCESS, metavar="RATE",
+                        help="success rate of 'episodes to target' (default: %(default)s)")
+    report.set_defaults(func=cmd_report)
