@@ -539,3 +539,20 @@ def test_direct_construction_does_not_clip():
     # ...but a trip through a dict clips it, with a warning.
     with pytest.warns(UserWarning, match=r"upper\[3\] \(left_e1\)"):
         assert ConstraintSet.from_dict(cs.to_dict()).segments[0].upper[3] == 2.618
+
+
+def test_sets_match_within_an_ulp_of_re_extraction_but_not_a_real_change(tmp_path):
+    from dualarm.constraints.constraint_set import same_constraints
+
+    base = ConstraintSet.single(C2_LO, C2_HI, name="a")
+    ulp = ConstraintSet.single(np.nextafter(C2_LO, 1.0), C2_HI, name="a")
+    moved = C2_HI.copy()
+    moved[13] -= 1e-6
+    assert base.matches(ulp) and ulp.matches(base)
+    assert not base.matches(ConstraintSet.single(C2_LO, moved, name="a"))
+    assert not base.matches(ConstraintSet.single(C2_LO, C2_HI, name="b"))
+    base.save(tmp_path / "a.yaml")
+    ulp.save(tmp_path / "b.yaml")
+    assert (tmp_path / "a.yaml").read_bytes() != (tmp_path / "b.yaml").read_bytes()
+    assert same_constraints(tmp_path / "a.yaml", tmp_path / "b.yaml")
+    assert not same_constraints(tmp_path / "a.yaml", tmp_path / "missing.yaml")

@@ -21,6 +21,8 @@ from dualarm.yaml_io import read_yaml
 
 #: Guide-reward constants c0 per sub-task (reach, grasp, align), from the paper's experiment.
 DEFAULT_C0 = PAPER_C0
+#: Bounds closer than this (rad) are the same bound in ``ConstraintSet.matches``.
+MATCH_ATOL = 1e-9
 #: Version of the YAML file layout written by :meth:`ConstraintSet.save`.
 SCHEMA_VERSION = 1
 #: Conditions with a shipped constraints file (``default_constraints_path``).
@@ -421,6 +423,17 @@ class ConstraintSet:
         scale = np.stack(np.broadcast_arrays(c[sl], c[sr]), axis=-1)
         return scale * (2 * n - _N_ARM)
 
+    def matches(self, other: "ConstraintSet", atol: float = MATCH_ATOL) -> bool:
+        """Same name and segments (sub-tasks, and bounds within ``atol`` rad); provenance aside.
+
+        Re-extracting the same demonstrations can move a bound by an ulp (threaded BLAS sums
+        in the mapping), so a comparison asks this rather than for equal bytes.
+        """
+        return self.name == other.name and len(self.segments) == len(other.segments) and all(
+            a.subtasks == b.subtasks and np.allclose(a.lower, b.lower, rtol=0, atol=atol)
+            and np.allclose(a.upper, b.upper, rtol=0, atol=atol)
+            for a, b in zip(self.segments, other.segments))
+
     def width_fractions(self, limits: Any = BAXTER_JOINT_LIMITS) -> np.ndarray:
         """Width of each segment's range over the width of the joint's limits.
 
@@ -624,3 +637,11 @@ def parse_segments(spec: str) -> tuple[tuple[str, ...], ...]:
     except InputError as e:
         raise InputError(f"segments {spec!r}: {e}") from None
     return tuple(groups)
+
+
+def same_constraints(a: str | os.PathLike, b: str | os.PathLike) -> bool:
+    """Whether two constraints files hold matching sets (:meth:`ConstraintSet.matches`);
+    False when either is missing."""
+    if not (Path(a).exists() and Path(b).exists()):
+        return False
+    return ConstraintSet.load(a).matches(ConstraintSet.load(b))

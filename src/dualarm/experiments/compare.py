@@ -22,6 +22,7 @@ from pathlib import Path
 import yaml
 
 from dualarm.atomic import atomic_copy, atomic_open
+from dualarm.constraints.constraint_set import ConstraintSet, same_constraints
 from dualarm.errors import InputError
 from dualarm.experiments.backends import MANIFEST, RunOutcome, RunTask, logged_episodes, read_done
 from dualarm.locks import DirectoryLock
@@ -326,8 +327,6 @@ def _constraint_copies(comparison: Comparison, given_dir: Path | None) -> dict[s
     """Constraint files to copy into ``root/constraints`` ({condition: source}), after
     checking that every guided condition has one and that ``given_dir`` agrees with the
     copies already made."""
-    from dualarm.constraints.constraint_set import ConstraintSet
-
     if comparison.constraints_dir is None:
         return {}
     copies = {}
@@ -335,8 +334,7 @@ def _constraint_copies(comparison: Comparison, given_dir: Path | None) -> dict[s
         copy = comparison.constraints_path(condition)
         source = (given_dir or comparison.constraints_dir) / f"{condition}.yaml"
         if copy.exists():
-            if given_dir is not None and (not source.exists()
-                                          or source.read_bytes() != copy.read_bytes()):
+            if given_dir is not None and not same_constraints(source, copy):
                 raise InputError(f"field 'constraints.{condition}': {source} differs from the "
                                  f"comparison's copy {copy}; choose another -o to compare other "
                                  "constraints", source=str(comparison.manifest_path))
@@ -361,7 +359,7 @@ def _check_run_dir(plan: RunPlan) -> None:
     diff = differences(yaml.safe_load(yaml.safe_dump(theirs)), yaml.safe_load(yaml.safe_dump(mine)))
     if not diff and plan.config.condition != "none":
         here, there = plan.config.constraints_file(), theirs_config.constraints_file()
-        if not there.exists() or there.read_bytes() != here.read_bytes():
+        if not same_constraints(there, here):
             diff = [("constraints", str(there), str(here))]
     if diff:
         name, there, here = diff[0]
