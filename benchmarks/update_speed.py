@@ -44,7 +44,7 @@ def time_updates(config: DADDPGConfig, obs: int, seconds: float) -> tuple[float,
     buf = ReplayBuffer(20_000, 2, obs, 4)
     n = 20_000
     buf.add(rng.normal(size=(n, 2, obs)), rng.uniform(-1, 1, (n, 2, 4)), rng.normal(size=(n, 2)),
-            rng.normal(size=(n, 2, obs)), np.zeros(n), rng.integers(1, config.n_step + 1, n))
+            rng.normal(size=(n, 2, obs)), np.zeros(n))
     agent.normalizer.update(rng.normal(size=(1000, 2, obs)))
     rows = config.batch_size + config.demo_batch_size
     for _ in range(5):
@@ -66,17 +66,16 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     print(f"torch {torch.__version__}, {args.threads} thread(s), {platform.processor() or platform.machine()}")
     # (hidden, batch, options beyond the defaults)
-    h_n3 = {"n_step": 3, "value_rescale": True}
     demos = {"demo_batch_size": 64, "bc_weight": 30.0}
     cases = [((256, 256, 256), 256, {}), ((256, 256), 256, {}), ((128, 128, 128), 256, {}),
              ((128, 128), 256, {}), ((256, 256, 256), 128, {}),
              ((256, 256), 256, {"twin_critics": True}), ((128, 128), 256, {"twin_critics": True}),
-             ((256, 256), 256, h_n3), ((256, 256), 256, demos)]
-    print(f"{'hidden':>16} {'batch':>5} {'twin':>4} {'h+n3':>4} {'demo':>4} {'GFLOP/upd':>9} "
+             ((256, 256), 256, demos)]
+    print(f"{'hidden':>16} {'batch':>5} {'twin':>4} {'demo':>4} {'GFLOP/upd':>9} "
           f"{'ms/upd':>7} {'upd/s':>6} {'GFLOP/s':>7} {'roofline':>8} {'ratio':>5}")
     for hidden, batch, options in cases:
         config = DADDPGConfig(hidden=hidden, batch_size=batch, buffer_size=20_000, **options)
-        flags = [config.twin_critics, config.value_rescale, config.demo_batch_size > 0]
+        flags = [config.twin_critics, config.demo_batch_size > 0]
         dt, flops = time_updates(config, args.obs, args.seconds)
         # the roofline: the matmul rate of the update's hidden layer shape (batch x h @ h x h)
         peak = matmul_gflops(2 * batch, hidden[-1], hidden[-1], min(1.0, args.seconds))

@@ -7,7 +7,7 @@ import torch
 from dualarm.rl import DADDPG, DADDPGConfig
 from dualarm.rl.daddpg import NonFiniteLoss
 from dualarm.rl.networks import StackedMLP
-from dualarm.rl.noise import GaussianNoise, OrnsteinUhlenbeckNoise, make_noise
+from dualarm.rl.noise import GaussianNoise
 from dualarm.rl.normalizer import RunningNormalizer
 from dualarm.rl.replay import ReplayBuffer
 
@@ -87,7 +87,7 @@ def test_update_follows_equations_13_to_15():
     out = agent.update(batch)
     assert out["critic_loss"] == pytest.approx(expected_critic, rel=1e-5)
     # Eq. 15: theta' <- tau theta + (1 - tau) theta' with the updated online weights
-    tau = 1 - c.polyak
+    tau = c.tau
     for online, target, before in ((agent.actor, agent.actor_target, old["actor_target"]),
                                    (agent.critic, agent.critic_target, old["critic_target"])):
         for p, pt, pb in zip(online.parameters(), target.parameters(), before):
@@ -199,8 +199,8 @@ def test_state_dict_round_trip_continues_identically():
 def test_config_validation_names_the_field():
     with pytest.raises(ValueError, match="gamma"):
         DADDPGConfig(gamma=1.5)
-    with pytest.raises(ValueError, match="noise"):
-        DADDPGConfig(noise="pink")
+    with pytest.raises(ValueError, match="tau"):
+        DADDPGConfig(tau=0.0)
     with pytest.raises(ValueError, match="unknown DADDPG field"):
         DADDPGConfig.from_dict({"learning_rate": 1e-3})
     assert DADDPGConfig.from_dict(DADDPGConfig().to_dict()) == DADDPGConfig()
@@ -252,61 +252,22 @@ def test_replay_wraps_around_and_reloads_identically():
         ReplayBuffer(10, 2, 4, 2).load_state_dict(buf.state_dict())
 
 
-def test_noise_processes():
-    rng = np.random.default_rng(0)
-    g = GaussianNoise(0.3).sample(rng, (20000,))
+def test_gaussian_noise_has_its_std():
+    g = GaussianNoise(0.3).sample(np.random.default_rng(0), (20000,))
     assert abs(g.std() - 0.3) < 0.01 and abs(g.mean()) < 0.01
-    ou = OrnsteinUhlenbeckNoise(0.2, theta=0.15)
-    xs = np.array([ou.sample(rng, (2, 2, 1)) for _ in range(2000)])
-    lag1 = np.corrcoef(xs[:-1, 0, 0, 0], xs[1:, 0, 0, 0])[0, 1]
-    assert lag1 > 0.7                                       # temporally correlated
-    ou.reset(np.array([True, False]))
-    assert np.all(ou.x[0] == 0) and np.any(ou.x[1] != 0)
-    with pytest.raises(ValueError, match="noise"):
-        make_noise("pink", 0.1, 0.1)
 
 
-def test_nstep_episode_sums_discounted_rewards_and_bootstraps_correctly():
-    from dualarm.rl.nstep import nstep_episode
-    T, gamma = 5, 0.9
-    obs = np.arange(T, dtype=float).reshape(T, 1, 1).repeat(2, 1)
-    nxt = obs + 1
-    act = np.zeros((T, 2, 1))
-    rew = np.stack([np.arange(1.0, T + 1), -np.arange(1.0, T + 1)], axis=1)   # (T, 2)
-    o, u, r, o2, done, steps = nstep_episode(obs, act, rew, nxt, True, 3, gamma)
-    # transition 0 spans steps 0..2, transition 3 only steps 3..4 (the episode ends)
-    assert r[0, 0] == pytest.approx(1 + 0.9 * 2 + 0.81 * 3)
-    assert r[3, 1] == pytest.approx(-(4 + 0.9 * 5))
-    assert o2[0, 0, 0] == 3 and o2[3, 0, 0] == 5 and o2[4, 0, 0] == 5
-    assert steps.tolist() == [3, 3, 3, 2, 1]
-    assert done.tolist() == [0, 0, 1, 1, 1]      # windows reaching the terminal step
-    _, _, r1, o21, done1, steps1 = nstep_episode(obs, act, rew, nxt, False, 1, gamma)
-    np.testing.assert_array_equal(r1, rew)        # n = 1: the one-step transitions
-    np.testing.assert_array_equal(o21, nxt)
-    assert done1.sum() == 0 and (steps1 == 1).all()
-
-
-def test_nstep_target_uses_gamma_to_the_steps_spanned():
-    agent = small_agent(n_step=3)
-    batch = random_batch()
-    batch["steps"] = torch.tensor([1.0, 2, 3, 3, 1, 2, 3, 3])
-    gamma_n = agent.config.gamma ** batch["steps"] * (1 - batch["done"])
-    expected = critic_loss_by_hand(agent, batch,
-                                   lambda i, q2: (batch["rew"][:, i] + gamma_n * q2[:, 0])[:, None])
-    assert agent.update(batch)["critic_loss"] == pytest.approx(expected, rel=1e-5)
-
-
-def test_value_rescaling_is_invertible_and_squashes_large_returns():
-    from dualarm.rl.daddpg import value_h, value_h_inverse
-    x = torch.tensor([-4000.0, -15.0, -0.3, 0.0, 0.2, 40.0, 4000.0], dtype=torch.float64)
-    torch.testing.assert_close(value_h_inverse(value_h(x)), x)
-    assert value_h(torch.tensor(4000.0)) < 70           # a bonus of 4000 becomes ~66
-    assert (value_h(x[1:]) > value_h(x[:-1])).all()     # increasing: argmax_a unchanged
-    agent = small_agent(value_rescale=True)
-    batch = random_batch(rew=torch.full((8, 2), 4000.0))
-    out = agent.update(batch)                            # targets in h-space: loss stays small
-    assert out["critic_loss"] < 2 * 2 * 70 ** 2
-    assert small_agent().update(batch)["critic_loss"] > 2 * 4000.0 ** 2 * 0.5
+def test_settings_of_the_older_layout_still_load():
+    """Run directories written before tau and the option removals load as they ran."""
+    old = {**DADDPGConfig().to_dict(), "polyak": 0.95, "noise": "gaussian", "ou_theta": 0.15,
+           "n_step": 1, "value_rescale": False}
+    del old["tau"]
+    assert DADDPGConfig.from_dict(old) == DADDPGConfig(tau=1 - 0.95)
+    for name, value in (("noise", "ou"), ("n_step", 3), ("value_rescale", True)):
+        with pytest.raises(ValueError, match=f"{name}: .* is no longer an option"):
+            DADDPGConfig.from_dict({name: value})
+    with pytest.raises(ValueError, match="not both"):
+        DADDPGConfig.from_dict({"polyak": 0.9, "tau": 0.1})
 
 
 def test_behaviour_cloning_term_is_q_filtered():

@@ -8,6 +8,31 @@ from dualarm.errors import InputError
 from dualarm.typed_fields import check_field_types
 
 
+#: Options removed from DADDPGConfig (issue 17; the commit before their removal has them), with
+#: the one value a file may still give: old run directories keep loading and resuming.
+REMOVED_FIELDS = {"noise": "gaussian", "n_step": 1, "value_rescale": False}
+
+
+def _upgrade(d: dict, where: str) -> dict:
+    """A settings dict of an older layout in today's: ``polyak`` -> ``tau``, removed options
+    dropped where they have the value that is today's behaviour (``ou_theta`` only mattered
+    with OU noise)."""
+    d = dict(d)
+    if "polyak" in d:
+        if "tau" in d:
+            raise InputError(f"{where}: give tau or polyak (tau = 1 - polyak), not both")
+        polyak = d.pop("polyak")
+        d["tau"] = 1.0 - polyak if isinstance(polyak, (int, float)) and not isinstance(polyak, bool) else polyak
+    d.pop("ou_theta", None)
+    for name, value in REMOVED_FIELDS.items():
+        if name in d:
+            if d[name] != value or type(d[name]) is not type(value):
+                raise InputError(f"{where}: {name}: {d[name]!r} is no longer an option (only "
+                                 f"{value!r}; docs/training.md names the commit that had it)")
+            del d[name]
+    return d
+
+
 @dataclass(frozen=True)
 class DADDPGConfig:
     """Dual-agent DDPG settings. Defaults start from Plappert et al. 2018 (DDPG+HER on Fetch)
@@ -27,18 +52,15 @@ class DADDPGConfig:
     """Transitions per update (Plappert: 256)."""
     gamma: float = 0.98
     """Discount factor of Eq. 13 (Plappert: 0.98; 50-step episodes)."""
-    polyak: float = 0.995
-    """Target networks keep this fraction per update, Eq. 15 with tau = 1 - polyak. Plappert's
-    0.95 is per cycle of 40 updates (~0.9987 per update); 0.95 per update made Q diverge here."""
+    tau: float = 0.005
+    """Eq. 15's tau: target networks move this fraction of the way per update. Plappert's
+    polyak 0.95 is per cycle of 40 updates (tau ~0.0013 per update); 0.05 per update made Q
+    diverge here. (Files that say ``polyak: P`` are read as tau = 1 - P.)"""
     buffer_size: int = 1_000_000
     """Replay capacity in joint transitions (Plappert: 1e6)."""
-    noise: str = "gaussian"
-    """Exploration noise: "gaussian" or "ou" (Ornstein-Uhlenbeck)."""
     noise_std: float = 0.1
     """Standard deviation of the noise in action units, actions span [-1, 1] (Plappert: 0.2;
     0.1 is 5 mm per step here, enough next to a 2 cm reach tolerance)."""
-    ou_theta: float = 0.15
-    """Mean reversion of the OU noise per step."""
     random_eps: float = 0.0
     """Probability of a uniformly random action per step and agent (Plappert: 0.3; random
     jumps of up to 5 cm knock the boxes over: 0 reached the boxes ~2x as often)."""
@@ -66,13 +88,6 @@ class DADDPGConfig:
     """Layer normalisation in every hidden layer of the critics (Ba et al. 2016): bounds the
     values a critic extrapolates to off the data, which an actor otherwise saturates towards
     (Ball et al. 2023, RLPD). Off by default (docs/learning-runs.md, round 6)."""
-    n_step: int = 1
-    """Rewards summed over up to n steps before bootstrapping (y = sum_k gamma^k r_k +
-    gamma^n Q'); 1 is Eq. 13 as printed. Larger n carries rare bonuses back faster."""
-    value_rescale: bool = False
-    """Critics learn h(Q) with h(x) = sign(x)(sqrt(|x|+1)-1) + 1e-3 x (Pohlen et al. 2018), so
-    that a bonus of thousands and shaping terms of tenths fit one network; the actor's
-    argmax is unchanged (h is increasing)."""
     demo_batch_size: int = 0
     """Transitions drawn from the demonstration buffer into every update, next to
     ``batch_size`` from replay (Nair et al. 2018; needs demonstrations, e.g. TrainConfig's
@@ -91,13 +106,11 @@ class DADDPGConfig:
             "hidden": all(h >= 1 for h in self.hidden) and len(self.hidden) >= 1,
             "actor_lr": self.actor_lr > 0, "critic_lr": self.critic_lr > 0,
             "batch_size": self.batch_size >= 1, "gamma": 0 <= self.gamma < 1,
-            "polyak": 0 <= self.polyak < 1, "buffer_size": self.buffer_size >= self.batch_size,
-            "noise": self.noise in ("gaussian", "ou"), "noise_std": self.noise_std >= 0,
-            "ou_theta": self.ou_theta >= 0, "random_eps": 0 <= self.random_eps <= 1,
+            "tau": 0 < self.tau <= 1, "buffer_size": self.buffer_size >= self.batch_size,
+            "noise_std": self.noise_std >= 0, "random_eps": 0 <= self.random_eps <= 1,
             "action_l2": self.action_l2 >= 0, "obs_clip": self.obs_clip > 0,
             "grad_clip": self.grad_clip >= 0, "reward_scale": self.reward_scale > 0,
             "q_clip": self.q_clip >= 0, "target_noise": self.target_noise >= 0, "updates_per_step": self.updates_per_step >= 0,
-            "n_step": self.n_step >= 1,
             "demo_batch_size": self.demo_batch_size >= 0, "bc_weight": self.bc_weight >= 0,
             "warmup_steps": self.warmup_steps >= 0,
         }
@@ -116,6 +129,7 @@ class DADDPGConfig:
         """Build from a plain dict, naming unknown fields (``where`` prefixes the message)."""
         if not isinstance(d, dict):
             raise InputError(f"{where}: expected a mapping of DADDPG settings, got {d!r}"[:160])
+        d = _upgrade(d, where)
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - known)
         if unknown:

@@ -7,6 +7,10 @@ whole state s = (s_1, s_2) and its own action, plus target copies mu'_i and Q'_i
     Eq. 14   grad J(theta_mu_i) = E[grad_a Q_i(s, a) |a=mu_i(s_i) grad_theta mu_i(s_i)]
     Eq. 15   theta' <- tau theta + (1 - tau) theta'
 
+``td_target``, ``actor_loss`` and ``soft_update`` are the three equations; ``update`` is one
+step of all three. TD3's twin critics and target smoothing (Fujimoto et al. 2018), the target
+clip (HER's clip_return) and Q-filtered behaviour cloning (Nair et al. 2018) are options.
+
 Both agents' networks are stacked along a leading agent axis (``StackedMLP``), so each
 line below updates the two agents in one batched pass.
 
@@ -21,23 +25,8 @@ import torch
 
 from dualarm.rl.config import DADDPGConfig
 from dualarm.rl.networks import StackedMLP
-from dualarm.rl.noise import make_noise
+from dualarm.rl.noise import GaussianNoise
 from dualarm.rl.normalizer import RunningNormalizer
-
-
-#: epsilon of the value rescaling h (Pohlen et al. 2018)
-_H_EPS = 1e-3
-
-
-def value_h(x: torch.Tensor) -> torch.Tensor:
-    """h(x) = sign(x) (sqrt(|x| + 1) - 1) + eps x: squashes large returns, ~x/2 near 0."""
-    return torch.sign(x) * (torch.sqrt(x.abs() + 1.0) - 1.0) + _H_EPS * x
-
-
-def value_h_inverse(y: torch.Tensor) -> torch.Tensor:
-    """The inverse of ``value_h`` (closed form)."""
-    root = (torch.sqrt(1.0 + 4.0 * _H_EPS * (y.abs() + 1.0 + _H_EPS)) - 1.0) / (2.0 * _H_EPS)
-    return torch.sign(y) * (root * root - 1.0)
 
 
 class NonFiniteLoss(FloatingPointError):
@@ -101,7 +90,7 @@ class DADDPG:
         if c.free_grip:
             for i, n in enumerate(act_sizes):
                 self.penalty_mask[i, :, n - 1] = 0.0
-        self.noise = make_noise(c.noise, c.noise_std, c.ou_theta)
+        self.noise = GaussianNoise(c.noise_std)
         # target smoothing noise draws from the learner's own stream, not torch's global one
         self.torch_rng = torch.Generator().manual_seed(seed + 1)
         self.updates = 0
@@ -155,16 +144,56 @@ class DADDPG:
             return q
         return (q * self._head_weights).sum(-1, keepdim=True)
 
+    def td_target(self, r: torch.Tensor, not_done: torch.Tensor, o2: torch.Tensor) -> torch.Tensor:
+        """Eq. 13's y_i = r_i + gamma Q'_i(s', mu'_i(s'_i)), (A, B, H), without gradients.
+
+        r (A, B, H) scaled rewards, not_done (1, B, 1), o2 (A, B, O) normalised next
+        observations. With twin critics Q' is the smaller of the two target critics, with
+        ``target_noise`` the target actions are smoothed (TD3), with ``q_clip`` y is clipped.
+        """
+        c = self.config
+        a2 = self.actor_target(o2)
+        if c.target_noise > 0:
+            eps = (torch.randn(a2.shape, generator=self.torch_rng) * c.target_noise).clamp(-0.5, 0.5)
+            a2 = (a2 + eps).clamp(-1.0, 1.0)
+        q2 = self._per_agent(self.critic_target(self._critic_input(o2, a2 * self.action_mask)))
+        y = r + c.gamma * not_done * q2.min(dim=0).values               # min over twins (if any)
+        return y.clamp(-c.q_clip, c.q_clip) if c.q_clip > 0 else y
+
+    def actor_loss(self, o: torch.Tensor, q_taken: torch.Tensor, a_taken: torch.Tensor,
+                   demo_rows: int = 0) -> torch.Tensor:
+        """Eq. 14 as a loss: -Q_i(s, mu_i(s_i)) through the actor only, plus ``action_l2``,
+        summed over agents. With ``bc_weight``, behaviour cloning on the last ``demo_rows``
+        rows where the critic rates the demonstrated action (``q_taken``) above the actor's."""
+        c = self.config
+        a_pi = self.actor(o) * self.action_mask
+        self.critic.requires_grad_(False)
+        q_pi = self.q_total(self._per_agent(self.critic(self._critic_input(o, a_pi)))[0])
+        self.critic.requires_grad_(True)
+        loss = (-q_pi.mean(dim=(1, 2)) + self.action_penalty(a_pi)).sum()
+        if demo_rows and c.bc_weight > 0:
+            q_demo = self.q_total(q_taken[0, :, -demo_rows:])
+            better = (q_demo > q_pi[:, -demo_rows:]).detach().float()              # (A, D, 1)
+            miss = ((a_pi[:, -demo_rows:] - a_taken[:, -demo_rows:]) ** 2).sum(-1, keepdim=True)
+            loss = loss + c.bc_weight * (better * miss).mean(dim=(1, 2)).sum()
+        return loss
+
+    @torch.no_grad()
+    def soft_update(self) -> None:
+        """Eq. 15: theta' <- tau theta + (1 - tau) theta', for every target network."""
+        tau = self.config.tau
+        torch._foreach_lerp_(list(self.actor_target.parameters()), list(self.actor.parameters()), tau)
+        torch._foreach_lerp_(list(self.critic_target.parameters()), list(self.critic.parameters()), tau)
+
     def update(self, batch: dict[str, torch.Tensor], demo_rows: int = 0) -> dict[str, float]:
-        """One gradient step of both agents' critics and actors, then the target update.
+        """One gradient step of both agents' critics (Eq. 13) and actors (Eq. 14), then the
+        target networks (Eq. 15).
 
         Args:
             batch: obs and next_obs (B, A, O), act (B, A, U), rew (B, A) or, with reward
-                heads, (B, A, H), done (B,), and
-                optionally steps (B,): the steps each transition spans (n-step; default 1).
-            demo_rows: the last ``demo_rows`` rows of the batch are demonstrations: with
-                ``bc_weight`` > 0 the actor is also pulled towards their actions where the
-                critic rates those above its own (the Q-filter).
+                heads, (B, A, H), and done (B,).
+            demo_rows: the last ``demo_rows`` rows of the batch are demonstrations (see
+                :meth:`actor_loss`).
 
         Returns:
             {"critic_loss", "actor_loss", "q_mean"} summed or averaged over agents.
@@ -172,7 +201,6 @@ class DADDPG:
         Raises:
             NonFiniteLoss: a loss is NaN or infinite (no parameter was changed).
         """
-        c = self.config
         norm = self.normalizer.normalize
         o = norm(batch["obs"]).transpose(0, 1)                     # (A, B, O)
         o2 = norm(batch["next_obs"]).transpose(0, 1)
@@ -180,40 +208,13 @@ class DADDPG:
         rew = batch["rew"] if batch["rew"].dim() == 3 else batch["rew"].unsqueeze(-1)
         r = rew.transpose(0, 1) * self._scales                     # (A, B, H)
         not_done = (1.0 - batch["done"]).view(1, -1, 1)            # (1, B, 1)
-        steps = batch.get("steps")
-        gamma = (c.gamma if steps is None or c.n_step == 1     # gamma^n for n-step transitions
-                 else torch.pow(c.gamma, steps).view(1, -1, 1))
 
-        # Eq. 13: y_i = r_i + gamma Q'_i(s', mu'_i(s'_i)); critic loss (y_i - Q_i(s, a_i))^2
         with torch.no_grad():
-            a2 = self.actor_target(o2)
-            if c.target_noise > 0:     # optional target smoothing (TD3), off by default
-                eps = (torch.randn(a2.shape, generator=self.torch_rng) * c.target_noise).clamp(-0.5, 0.5)
-                a2 = (a2 + eps).clamp(-1.0, 1.0)
-            q2 = self._per_agent(self.critic_target(self._critic_input(o2, a2 * self.action_mask)))
-            q2 = q2.min(dim=0).values                             # min over twins (if any)
-            if c.value_rescale:                                   # critics hold h(Q)
-                q2 = value_h_inverse(q2)
-            y = r + gamma * not_done * q2
-            if c.q_clip > 0:
-                y = y.clamp(-c.q_clip, c.q_clip)
-            if c.value_rescale:
-                y = value_h(y)
+            y = self.td_target(r, not_done, o2)
         q = self._per_agent(self.critic(self._critic_input(o, a_taken)))
         critic_loss = ((y - q) ** 2).mean(dim=(2, 3)).sum()       # per head and sample, summed over critics
-
-        # Eq. 14: ascend Q_i(s, mu_i(s_i)) through the actor only (the critic is held fixed)
-        a_pi = self.actor(o) * self.action_mask
-        self.critic.requires_grad_(False)
-        q_pi = self.q_total(self._per_agent(self.critic(self._critic_input(o, a_pi)))[0])
-        self.critic.requires_grad_(True)
-        actor_loss = (-q_pi.mean(dim=(1, 2)) + self.action_penalty(a_pi)).sum()
-        if demo_rows and c.bc_weight > 0:
-            # behaviour cloning on the demonstrations the critic prefers to the actor's actions
-            q_demo = self.q_total(q[0, :, -demo_rows:])
-            better = (q_demo > q_pi[:, -demo_rows:]).detach().float()              # (A, D, 1)
-            miss = ((a_pi[:, -demo_rows:] - a_taken[:, -demo_rows:]) ** 2).sum(-1, keepdim=True)
-            actor_loss = actor_loss + c.bc_weight * (better * miss).mean(dim=(1, 2)).sum()
+        # The actor climbs the critic as it is before this step's critic update.
+        actor_loss = self.actor_loss(o, q, a_taken, demo_rows)
 
         if not (torch.isfinite(critic_loss) and torch.isfinite(actor_loss)):
             raise NonFiniteLoss(f"non-finite loss at update {self.updates + 1}: critic "
@@ -227,17 +228,10 @@ class DADDPG:
         self._clip(self.actor)
         self.critic_opt.step()
         self.actor_opt.step()
-
-        # Eq. 15: theta' <- tau theta + (1 - tau) theta', tau = 1 - polyak
-        with torch.no_grad():
-            tau = 1.0 - c.polyak
-            torch._foreach_lerp_(list(self.actor_target.parameters()),
-                                 list(self.actor.parameters()), tau)
-            torch._foreach_lerp_(list(self.critic_target.parameters()),
-                                 list(self.critic.parameters()), tau)
+        self.soft_update()
         self.updates += 1
         return {"critic_loss": critic_loss.item(), "actor_loss": actor_loss.item(),
-                "q_mean": self.q_total(value_h_inverse(q[0]) if c.value_rescale else q[0]).mean().item()}
+                "q_mean": self.q_total(q[0]).mean().item()}
 
     def _clip(self, net: torch.nn.Module) -> None:
         """Scale each agent's gradients so that their global norm is at most grad_clip."""
@@ -262,7 +256,7 @@ class DADDPG:
 
     # -------------------------------------------------------- saving/loading
     _PARTS = ("actor", "critic", "actor_target", "critic_target", "actor_opt", "critic_opt",
-              "normalizer", "noise")
+              "normalizer")
     _POLICY_PARTS = ("actor", "normalizer")
 
     def _shapes(self) -> dict:

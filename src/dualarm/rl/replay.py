@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-_FIELDS = ("obs", "act", "rew", "next_obs", "done", "steps", "left")
+_FIELDS = ("obs", "act", "rew", "next_obs", "done", "left")
 
 
 class ReplayBuffer:
@@ -14,10 +14,7 @@ class ReplayBuffer:
     Shapes: obs and next_obs (capacity, A, obs_size), act (capacity, A, act_size),
     rew (capacity, A), or (capacity, A, reward_size) for rewards split into components
     (``reward_size`` > 1, the critics' reward heads), done (capacity,) 1.0 where the episode terminated (not truncated:
-    a time limit is not a terminal state, so it still bootstraps), steps (capacity,) the
-    number of environment steps the transition spans (n-step returns: ``rew`` is then the
-    discounted sum of that many rewards and ``next_obs`` the observation that many steps on),
-    left (capacity,) how many transitions of the same episode follow this one in storage
+    a time limit is not a terminal state, so it still bootstraps), left (capacity,) how many transitions of the same episode follow this one in storage
     (hindsight relabelling draws its future goals from them; 0 when episodes are not stored
     whole).
     """
@@ -28,7 +25,7 @@ class ReplayBuffer:
         rew = (num_agents,) if reward_size == 1 else (num_agents, reward_size)
         self.shapes = {"obs": (num_agents, obs_size), "act": (num_agents, act_size),
                        "rew": rew, "next_obs": (num_agents, obs_size), "done": (),
-                       "steps": (), "left": ()}
+                       "left": ()}
         # np.empty of a large capacity reserves address space only: pages fill as we write.
         self.data = {k: np.empty((self.capacity, *s), dtype=np.float32) for k, s in self.shapes.items()}
         self.size = 0
@@ -37,12 +34,11 @@ class ReplayBuffer:
     def __len__(self) -> int:
         return self.size
 
-    def add(self, obs, act, rew, next_obs, done, steps=1, left=0) -> None:
-        """Append N transitions (leading axis N on every argument; ``steps`` and ``left`` may
-        be scalars)."""
+    def add(self, obs, act, rew, next_obs, done, left=0) -> None:
+        """Append N transitions (leading axis N on every argument; ``left`` may be a scalar)."""
         n = len(obs)
         idx = (self.next + np.arange(n)) % self.capacity
-        for key, value in zip(_FIELDS, (obs, act, rew, next_obs, done, steps, left)):
+        for key, value in zip(_FIELDS, (obs, act, rew, next_obs, done, left)):
             self.data[key][idx] = value
         self.next = int((self.next + n) % self.capacity)
         self.size = min(self.size + n, self.capacity)
@@ -58,7 +54,7 @@ class ReplayBuffer:
         t_len = len(obs)
         done = np.zeros(t_len, dtype=np.float32)
         done[-1] = float(terminated)
-        self.add(obs, act, rew, next_obs, done, 1, np.arange(t_len - 1, -1, -1))
+        self.add(obs, act, rew, next_obs, done, np.arange(t_len - 1, -1, -1))
 
     def state_dict(self) -> dict:
         """The filled rows as tensors, in storage order, and the write position (a checkpoint

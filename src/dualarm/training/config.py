@@ -119,8 +119,6 @@ class TrainConfig:
                                  "than (1, 0, 0), for example [0.2, 0.2, 0.6]")
         if not 0 <= self.her_share <= 1:
             raise InputError(f"her_share must be in [0, 1], got {self.her_share}")
-        if self.her_share and self.algo.n_step != 1:
-            raise InputError("her_share: hindsight relabelling needs one-step transitions (algo.n_step 1)")
         if self.checkpoint_minutes <= 0:
             raise InputError(f"checkpoint_minutes must be > 0, got {self.checkpoint_minutes}")
 

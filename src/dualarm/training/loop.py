@@ -27,7 +27,6 @@ from dualarm.errors import DualarmError, InputError
 from dualarm.locks import DirectoryLock
 from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
 from dualarm.rl.her import HindsightSampler
-from dualarm.rl.nstep import nstep_episode
 from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import TrainConfig
 from dualarm.training.curriculum import START_CLASSES, ReverseCurriculum
@@ -310,7 +309,7 @@ class Trainer:
             timing["act_s"] += time.perf_counter() - t
             return actions
 
-        whole = a.n_step > 1 or c.her_share > 0   # store each episode in one piece
+        whole = c.her_share > 0                   # store each episode in one piece
         episodes = [[] for _ in range(n)]         # then: each copy's steps until it ends
 
         def store(obs, actions, step, live):
@@ -335,10 +334,7 @@ class Trainer:
         for steps in episodes:
             if steps:
                 o, u, rew, o2, term = (np.stack(x) for x in zip(*steps))
-                if a.n_step > 1:
-                    self.buffer.add(*nstep_episode(o, u, rew, o2, bool(term[-1]), a.n_step, a.gamma))
-                else:
-                    self.buffer.add_episode(o, u, rew, o2, bool(term[-1]))
+                self.buffer.add_episode(o, u, rew, o2, bool(term[-1]))
         round_steps = int(r.steps.sum())
         agent.normalizer.update(np.concatenate([r.first_obs, *seen]))
         timing["store_s"] += time.perf_counter() - t
