@@ -337,3 +337,15 @@ def test_reward_heads_follow_equation_13_per_head_and_the_actor_sees_their_sum()
     same.load_state_dict(agent.state_dict())
     with pytest.raises(ValueError, match="head_scales"):
         DADDPG(config, OBS, ACT, seed=0).load_state_dict(agent.state_dict())
+
+
+def test_random_actions_can_leave_the_grip_to_the_policy():
+    obs = np.random.default_rng(0).normal(size=(64, 2, 7))
+    kept, plain = small_agent(random_eps=1.0, random_grip=False, noise_std=0.0), small_agent(random_eps=1.0)
+    deterministic = kept.act(obs)
+    a = kept.act(obs, np.random.default_rng(1), explore=True)
+    b = plain.act(obs, np.random.default_rng(1), explore=True)
+    np.testing.assert_allclose(a[:, 0, 1], deterministic[:, 0, 1])      # agent 0's grip: its 2nd of 2
+    np.testing.assert_allclose(a[:, 1, 2], deterministic[:, 1, 2])      # agent 1's grip: its 3rd of 3
+    np.testing.assert_array_equal(a[:, :, 0], b[:, :, 0])               # the motion is random as before
+    assert not np.allclose(b[:, 1, 2], deterministic[:, 1, 2])

@@ -64,6 +64,10 @@ class DADDPGConfig:
     random_eps: float = 0.0
     """Probability of a uniformly random action per step and agent (Plappert: 0.3; random
     jumps of up to 5 cm knock the boxes over: 0 reached the boxes ~2x as often)."""
+    random_grip: bool = True
+    """Random actions (``random_eps``) replace the grip command too. False keeps the policy's
+    (noisy) grip command in a random step, so that exploring the motion does not open a hand
+    that holds its box (the grip is each agent's last action component)."""
     action_l2: float = 0.1
     """Weight of the mean squared action in the actor loss (Plappert: 1.0, made for returns of
     -50..0; with this task's distance rewards 1.0 kept the arms nearly still)."""

@@ -85,6 +85,10 @@ class DADDPG:
         self.action_mask = torch.zeros(a, 1, self.act_size)
         for i, n in enumerate(act_sizes):
             self.action_mask[i, :, :n] = 1.0
+        # (A, U) True at each agent's grip command, its last real action component
+        self._grip_columns = np.zeros((a, self.act_size), dtype=bool)
+        for i, n in enumerate(act_sizes):
+            self._grip_columns[i, n - 1] = True
         # the components action_l2 penalises: the real ones, less the grip where it is free
         self.penalty_mask = self.action_mask.clone()
         if c.free_grip:
@@ -111,7 +115,8 @@ class DADDPG:
         """Actions (N, A, U) in [-1, 1] for observations (N, A, O) of N environments.
 
         With ``explore``, noise is added and each agent's action is replaced by a uniform
-        random one with probability ``random_eps`` (both need ``rng``).
+        random one with probability ``random_eps`` (both need ``rng``; without
+        ``random_grip`` the grip command stays the noisy policy's).
         """
         with torch.inference_mode():
             o = torch.as_tensor(np.asarray(obs, dtype=np.float32)).transpose(0, 1)
@@ -120,6 +125,8 @@ class DADDPG:
             c = self.config
             actions = np.clip(actions + self.noise.sample(rng, actions.shape), -1.0, 1.0)
             random = rng.uniform(-1.0, 1.0, size=actions.shape)
+            if not c.random_grip:
+                random = np.where(self._grip_columns, actions, random)
             pick = rng.random(actions.shape[:2]) < c.random_eps
             actions = np.where(pick[..., None], random, actions)
             actions *= self.action_mask[:, 0].numpy()
