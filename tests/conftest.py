@@ -13,6 +13,8 @@ def pytest_addoption(parser):
 
 
 def pytest_configure(config):
+    config.addinivalue_line("markers", "slow: minutes of training or hundreds of episodes; CI runs them, "
+                            "the quick loop leaves them out (pytest -m 'not slow')")
     config.addinivalue_line("markers", "paper_scale: a training run of tens of minutes; only with "
                             "--paper-scale (CI skips it)")
 

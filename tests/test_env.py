@@ -150,6 +150,7 @@ def test_subtask_predicates_follow_the_physical_state(core, expert, seed):
     assert seen == {0, 1, 2} and results[-1].info["is_success"]
 
 
+@pytest.mark.slow
 def test_expert_success_rate_over_200_seeds(core, expert):
     successes = sum(bool(run_expert(core, expert, seed)[-1].info["is_success"]) for seed in range(200))
     assert successes >= 190, f"expert solved {successes}/200 episodes"
