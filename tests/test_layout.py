@@ -4,7 +4,7 @@ import ast
 from pathlib import Path
 
 import dualarm.task as task
-from dualarm.experiments.report import EVAL_READ
+from dualarm.experiments.run_logs import EVAL_READ
 from dualarm.training.run_dir import EVAL_COLUMNS
 
 SRC = Path(__file__).resolve().parents[1] / "src"

@@ -11,8 +11,8 @@ from dualarm.cli.main import main
 from dualarm.errors import InputError
 from dualarm.experiments.metrics import (condition_ratios, convergence, episodes_to_target,
                                          max_average, mean_ci, ratio, trailing_mean)
-from dualarm.experiments.report import (PAPER, PAPER_QUOTED_RATIOS, build_report, paper_ratio,
-                                        write_report)
+from dualarm.experiments.report import write_report
+from dualarm.experiments.summary import PAPER, PAPER_QUOTED_RATIOS, build_report, paper_ratio
 from dualarm.training.config import TrainConfig
 
 # ----------------------------------------------------------------------------- metrics

@@ -11,7 +11,8 @@ from dualarm.task import TARGET_SUCCESS
 
 def cmd_report(args: argparse.Namespace) -> int:
     """Write the report and print one line per condition."""
-    from dualarm.experiments.report import build_report, save_report
+    from dualarm.experiments.report import save_report
+    from dualarm.experiments.summary import build_report
 
     report = build_report(args.dir, args.window, args.target)
     print_report(report, save_report(report, args.output or args.dir / "report"))

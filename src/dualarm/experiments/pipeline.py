@@ -15,7 +15,8 @@ from pathlib import Path
 
 from dualarm.constraints.extraction import constraints_from_folder
 from dualarm.experiments.compare import CompareRequest, CompareResult, compare
-from dualarm.experiments.report import Report, build_report, save_report
+from dualarm.experiments.report import save_report
+from dualarm.experiments.summary import Report, build_report
 from dualarm.task import CONDITIONS
 
 #: (condition, segment spec) of the constraint files the comparison needs (paper: C1, C2&C3).

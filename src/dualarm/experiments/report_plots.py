@@ -12,7 +12,7 @@ from dualarm.atomic import atomic_path
 from dualarm.experiments.metrics import mean_ci
 
 if TYPE_CHECKING:
-    from dualarm.experiments.report import ConditionSummary, Report
+    from dualarm.experiments.summary import ConditionSummary, Report
 
 #: One colour per condition, the same in every figure.
 COLOURS = {"none": "#1f77b4", "single": "#ff7f0e", "multi": "#2ca02c"}

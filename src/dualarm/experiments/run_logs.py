@@ -1,0 +1,154 @@
+"""The run directories of a comparison, read: each run's config, metrics.csv and eval.csv
+as arrays (``load_run``), found under a comparison directory (``find_run_dirs``)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dualarm.errors import InputError
+
+#: Columns a run's metrics.csv must have (the others are not read).
+METRICS_READ = ("episode", "wall_time_s", "return_total", "success")
+
+#: Columns an eval.csv must have when it has rows.
+EVAL_READ = ("episode", "success_rate")
+
+@dataclass(frozen=True, eq=False)
+class Run:
+    """The curves of one training run directory.
+
+    Attributes:
+        path: the run directory.
+        condition: "none", "single" or "multi" (from config.yaml).
+        seed: the run's seed.
+        planned_episodes: ``episodes`` of its config (the run is partial if it has fewer).
+        wall_time_s: (n,) cumulative training time at the end of each episode, s.
+        return_total: (n,) return of each training episode, both arms.
+        success: (n,) 1 if the training episode succeeded, else 0.
+        eval_episode: (k,) training episodes after which an evaluation ran.
+        eval_success: (k,) success rate of each evaluation, in [0, 1].
+        notes: remarks on reading it (e.g. an incomplete last row dropped).
+    """
+
+    path: Path
+    condition: str
+    seed: int
+    planned_episodes: int
+    wall_time_s: np.ndarray
+    return_total: np.ndarray
+    success: np.ndarray
+    eval_episode: np.ndarray
+    eval_success: np.ndarray
+    notes: tuple[str, ...] = ()
+
+    @property
+    def episodes(self) -> int:
+        """Training episodes logged in metrics.csv."""
+        return len(self.success)
+
+    @property
+    def partial(self) -> bool:
+        """True when the run logged fewer episodes than its config asks for."""
+        return self.episodes < self.planned_episodes
+
+def find_run_dirs(comparison_dir: str | Path, depth: int = 2) -> list[Path]:
+    """Directories holding ``config.yaml`` and ``metrics.csv``: ``comparison_dir`` itself and
+    those up to ``depth`` levels below it (hidden ones skipped), sorted by path."""
+    from dualarm.training.run_dir import RunPaths
+
+    root = Path(comparison_dir)
+    found, level = [], [root]
+    for d in range(depth + 1):
+        found += [p for p in level if RunPaths(p).config.is_file() and RunPaths(p).metrics.is_file()]
+        if d < depth:
+            level = [c for p in level for c in sorted(p.iterdir())
+                     if c.is_dir() and not c.name.startswith(".")]
+    return sorted(found)
+
+def _read_columns(path: Path, required: tuple[str, ...]) -> tuple[dict[str, np.ndarray], list[str]]:
+    """Columns ``required`` of a CSV file as float arrays (finite values only).
+
+    A last row with too few fields and no line end is a row being written: it is dropped,
+    with a note. Any other bad row raises ``InputError`` naming the file, row and column.
+    """
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise InputError(f"cannot read ({exc.strerror})", source=str(path)) from None
+    rows = [r for r in csv.reader(io.StringIO(text)) if r]
+    if not rows:
+        raise InputError("empty file, no header", source=str(path))
+    header, data = [h.strip() for h in rows[0]], rows[1:]
+    for name in required:
+        if name not in header:
+            raise InputError(f"missing required column (the file has: {', '.join(header)})",
+                             source=str(path), column=name)
+    notes = []
+    if data and len(data[-1]) < len(header) and not text.endswith("\n"):
+        data = data[:-1]
+        notes.append(f"{path.name}: dropped an incomplete last row (still being written)")
+    for i, row in enumerate(data, 1):
+        if len(row) != len(header):
+            raise InputError(f"{len(row)} fields where the header has {len(header)}",
+                             source=str(path), row=i)
+    out = {}
+    for name in required:
+        j = header.index(name)
+        cells = [row[j] for row in data]
+        try:
+            values = np.array(cells, dtype=float)
+        except ValueError:
+            values = None
+        bad = (np.arange(len(cells)) if values is None else np.flatnonzero(~np.isfinite(values)))
+        for i in bad:
+            try:
+                ok = math.isfinite(float(cells[i]))
+            except ValueError:
+                ok = False
+            if not ok:
+                raise InputError(f"not a finite number: {cells[i]!r}", source=str(path),
+                                 row=int(i) + 1, column=name)
+        out[name] = values if values is not None else np.array(cells, dtype=float)
+    return out, notes
+
+def load_run(run_dir: str | Path) -> Run:
+    """Read one run directory (config.yaml, metrics.csv, eval.csv if present).
+
+    Raises:
+        InputError: unreadable config, a missing column, a non-numeric or non-finite value,
+            episodes that do not run 1, 2, 3, ..., or a success outside [0, 1]; the message
+            names the file, the row and the column.
+    """
+    from dualarm.training.config import TrainConfig
+    from dualarm.training.run_dir import RunPaths
+
+    paths = RunPaths(run_dir)
+    config = TrainConfig.load(paths.config)
+    m, notes = _read_columns(paths.metrics, METRICS_READ)
+    episode = m["episode"]
+    wrong = np.flatnonzero(episode != np.arange(1, len(episode) + 1))
+    if wrong.size:
+        i = int(wrong[0])
+        raise InputError(f"episodes must run 1, 2, 3, ... without gaps; found {episode[i]:g} "
+                         f"where {i + 1} was expected", source=str(paths.metrics), row=i + 1,
+                         column="episode")
+    off = np.flatnonzero((m["success"] < 0) | (m["success"] > 1))
+    if off.size:
+        raise InputError(f"success must be 0 or 1, got {m['success'][off[0]]:g}",
+                         source=str(paths.metrics), row=int(off[0]) + 1, column="success")
+    if paths.eval.is_file():
+        e, eval_notes = _read_columns(paths.eval, EVAL_READ)
+        notes += eval_notes
+    else:
+        e = {name: np.zeros(0) for name in EVAL_READ}
+    return Run(path=paths.root, condition=config.condition, seed=config.seed,
+               planned_episodes=config.episodes, wall_time_s=m["wall_time_s"],
+               return_total=m["return_total"], success=m["success"],
+               eval_episode=e["episode"].astype(int), eval_success=e["success_rate"],
+               notes=tuple(notes))
