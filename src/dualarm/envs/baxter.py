@@ -163,6 +163,12 @@ def solve_grip_ik(model: mujoco.MjModel, data: mujoco.MjData, ix: "_Indices",
     return worst
 
 
+#: Per-arm layout of the state gathered from MuJoCo each step (``qpos_gather``, 16 entries, and
+#: ``qvel_gather``, 8): the arm's 7 joints (rad), its 2 finger joints (m), its box's position
+#: (m) and orientation (w, x, y, z); the box's linear and angular velocity, the fingers' velocity.
+QPOS_JOINTS, QPOS_FINGERS, QPOS_BOX_POS, QPOS_BOX_QUAT = slice(0, 7), slice(7, 9), slice(9, 12), slice(12, 16)
+QVEL_BOX, QVEL_FINGERS = slice(0, 6), slice(6, 8)
+
 #: The reward split into the critics' heads (``DADDPG``'s ``head_scales``): per-step terms,
 #: goal bonuses (rg1, rg2), coordination bonus (rc).
 HEAD_TERMS = (("distance", "guide"), ("goal",), ("coordinate",))
@@ -707,9 +713,9 @@ class BaxterBatch:
     def _evaluate(self, grip: np.ndarray, qpos: np.ndarray, targets: np.ndarray) -> dict:
         """Sub-task predicates (n, 2) from grip sites (n, 2, 3) and gathered qpos (n, 2, 16)."""
         c = self.config
-        box = qpos[..., 9:12]
+        box = qpos[..., QPOS_BOX_POS]
         rel = box - grip
-        to_box, grasped, aligned = self._rule(rel, qpos[..., 7:9], box, targets)
+        to_box, grasped, aligned = self._rule(rel, qpos[..., QPOS_FINGERS], box, targets)
         reached = grasped | (to_box < c.reach_threshold)
         subtask = reached.astype(np.int64) + grasped
         state = {"grip": grip, "qpos": qpos, "rel": rel, "targets": targets, "reached": reached,
@@ -734,7 +740,7 @@ class BaxterBatch:
             to_goal = to_target
         distance = -np.sqrt((to_goal * to_goal).sum(axis=-1))
         if self.constraints is not None:
-            q = state["qpos"][..., :7].reshape(-1, 14)
+            q = state["qpos"][..., QPOS_JOINTS].reshape(-1, 14)
             guide = self.constraints.guide_reward(q, subtask[:, 0], subtask[:, 1], self._c0)
         else:
             guide = np.zeros_like(distance)
@@ -752,11 +758,11 @@ class BaxterBatch:
                  targets: np.ndarray) -> np.ndarray:
         """Observations (n, 2, obs_size) in the order of ``OBS_LAYOUT``."""
         qpos = state["qpos"]
-        quat = qpos[..., 12:16]
+        quat = qpos[..., QPOS_BOX_QUAT]
         if (quat[..., 0] < 0).any():                            # one sign per orientation
             quat = quat * np.where(quat[..., :1] < 0, -1.0, 1.0)
-        parts = [state["grip"], qpos[..., :7], qpos[..., 9:12], state["rel"], qpos[..., 7:9], quat,
-                 qvel[..., :6], grip_vel, qvel[..., 6:8], targets]
+        parts = [state["grip"], qpos[..., QPOS_JOINTS], qpos[..., QPOS_BOX_POS], state["rel"],
+                 qpos[..., QPOS_FINGERS], quat, qvel[..., QVEL_BOX], grip_vel, qvel[..., QVEL_FINGERS], targets]
         if not self._observe_joints:
             del parts[1]
         return np.concatenate(parts, axis=-1)
