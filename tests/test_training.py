@@ -302,14 +302,15 @@ def curriculum_config(**changes):
     return TrainConfig(**base)
 
 
-@pytest.mark.parametrize("heads,moving", [(False, 0.0), (True, 0.0), (False, 0.5)])
-def test_run_with_later_starts_and_hindsight_targets_resumes_exactly(tmp_path, heads, moving):
+@pytest.mark.parametrize("heads,moving,probe", [(False, 0.0, 0), (True, 0.0, 0), (False, 0.5, 0),
+                                                (False, 0.5, 4)])
+def test_run_with_later_starts_and_hindsight_targets_resumes_exactly(tmp_path, heads, moving, probe):
     """Start states (fixed or under the reverse curriculum) and hindsight relabelling draw
     from the run's own seeded streams: a run stopped at episode 8 and resumed gives the
     uninterrupted run's rows; the policy loads."""
     from dualarm.training.policy import load_policy
 
-    config = curriculum_config(reward_heads=heads, start_curriculum=moving)
+    config = curriculum_config(reward_heads=heads, start_curriculum=moving, curriculum_probe=probe)
     train(config, tmp_path / "ref", progress=False)
     train(config.with_(episodes=8), tmp_path / "run", progress=False)
     resume(tmp_path / "run", episodes=16, progress=False)
@@ -321,6 +322,22 @@ def test_run_with_later_starts_and_hindsight_targets_resumes_exactly(tmp_path, h
     assert agent.num_heads == (3 if heads else 1)
     assert rows(tmp_path / "run" / "eval.csv", drop=("wall_time_s",)) == \
         rows(tmp_path / "ref" / "eval.csv", drop=("wall_time_s",))
+
+
+def test_curriculum_probe_measures_the_later_starts_with_the_deterministic_policy(tmp_path):
+    """With curriculum_probe the curriculum counts probe episodes only (both arms at the
+    boxes, both holding them), made at each evaluation, not the training episodes."""
+    config = curriculum_config(start_curriculum=0.5, curriculum_probe=4)
+    trainer = Trainer.start(config, tmp_path / "run", progress=False)
+    trainer.run()
+    trainer.close()
+    recent = trainer.curriculum.recent
+    assert len(recent[0]) == 0                                    # no training episode counted
+    assert len(recent[1]) == len(recent[2]) == 8                  # 2 evaluations x 4 probes
+    assert set(trainer.probe_vecs) == {1, 2}
+    assert (trainer.probe_vecs[2].starts() == 2).all()
+    with pytest.raises(ValueError, match="curriculum_probe measures"):
+        curriculum_config(curriculum_probe=4)
 
 
 def test_curriculum_options_are_checked(tmp_path):

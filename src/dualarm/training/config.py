@@ -44,7 +44,13 @@ class TrainConfig:
             (``dualarm.training.curriculum``) moves the starts backwards as the task is
             learned: the sub-task at which most arms start (with the largest of
             ``start_probs``) begins at align and moves one sub-task earlier once the
-            episodes starting later succeed at this rate (in training, with exploration noise).
+            episodes starting later succeed at this rate (in training, with exploration noise,
+            unless ``curriculum_probe``).
+        curriculum_probe: with ``start_curriculum``: at every evaluation, this many episodes of
+            the deterministic policy with both arms starting at each later sub-task (at the
+            boxes, holding them) measure the curriculum's success rates, the way evaluations
+            measure success; 0 measures them on the training episodes, whose exploration
+            (noise, random actions) can hold a learned class below the threshold for good.
         approach_starts: an arm that starts a training episode at reach begins a uniform
             fraction of the way from home to just above its box instead of at home (needs
             ``start_probs``): training starts that cover the approach to the box.
@@ -77,6 +83,7 @@ class TrainConfig:
     torch_threads: int = 1
     start_probs: tuple[float, float, float] = (1.0, 0.0, 0.0)
     start_curriculum: float = 0.0
+    curriculum_probe: int = 0
     approach_starts: bool = False
     reward_heads: bool = False
     her_share: float = 0.0
@@ -113,6 +120,11 @@ class TrainConfig:
             raise InputError(f"start_probs: {exc}") from None
         if not 0 <= self.start_curriculum <= 1:
             raise InputError(f"start_curriculum must be in [0, 1], got {self.start_curriculum}")
+        if self.curriculum_probe < 0:
+            raise InputError(f"curriculum_probe must be >= 0, got {self.curriculum_probe}")
+        if self.curriculum_probe and not (self.start_curriculum and self.eval_every):
+            raise InputError("curriculum_probe measures the start_curriculum at every evaluation: "
+                             "give start_curriculum and eval_every too")
         for name in ("start_curriculum", "approach_starts"):
             if getattr(self, name) and not self.uses_start_states:
                 raise InputError(f"{name} moves the start states: give start_probs other "

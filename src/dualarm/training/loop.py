@@ -35,7 +35,7 @@ from dualarm.training.evaluation import evaluate
 from dualarm.training.rounds import run_round
 from dualarm.training.run_dir import (EVAL_COLUMNS, CheckpointError, CsvLog, RunPaths,
                                       load_checkpoint, save_checkpoint)
-from dualarm.training.vector import BaxterVector, ParallelEnvVector, VectorEnv, seeds_for
+from dualarm.training.vector import PROBE_SEED_BASE, BaxterVector, ParallelEnvVector, VectorEnv, seeds_for
 
 
 
@@ -130,8 +130,10 @@ class Trainer:
                                                       self.agent.num_heads)
             self.agent.normalizer.update(self.demos.data["obs"][:len(self.demos)])
         self.curriculum = None
+        self.probe_vecs = None       # curriculum_probe's copies, made at the first probe
         if config.start_curriculum:
-            self.curriculum = ReverseCurriculum(config.start_probs, config.start_curriculum)
+            window = 2 * config.curriculum_probe if config.curriculum_probe else 64
+            self.curriculum = ReverseCurriculum(config.start_probs, config.start_curriculum, window)
         self.rng = np.random.default_rng([config.seed, 1])
         self.episodes = 0
         self.env_steps = 0
@@ -271,6 +273,8 @@ class Trainer:
                 evaluated = self._crossed(before, c.eval_every) or self.episodes >= c.episodes
                 if self.eval_vec is not None and evaluated:
                     self._evaluate(started)
+                    if c.curriculum_probe:
+                        self._probe_curriculum()
                 self.wall_time_s = time.perf_counter() - started
                 bar.set_postfix(self._postfix(), refresh=False)
                 due = (time.perf_counter() - last_checkpoint >= 60 * c.checkpoint_minutes
@@ -329,7 +333,7 @@ class Trainer:
         r = run_round(v, seeds_for(c.seed, self.episodes, n), act, store)
         t = time.perf_counter()
         starts = v.starts()[:n] if c.uses_start_states else None
-        if self.curriculum is not None:
+        if self.curriculum is not None and not c.curriculum_probe:
             self.curriculum.record(starts, r.success)
         for steps in episodes:
             if steps:
@@ -399,6 +403,22 @@ class Trainer:
                     f"The last good checkpoint is kept in {self.paths.latest}; lower the "
                     "learning rates or the reward scale, or set grad_clip, and resume") from None
         return losses
+
+    def _probe_curriculum(self) -> None:
+        """Deterministic episodes from each later start class, recorded by the curriculum
+        (``TrainConfig.curriculum_probe``); seeds of their own, so training is not disturbed."""
+        c = self.config
+        if self.probe_vecs is None:
+            n = min(c.num_envs, c.curriculum_probe)
+            constraints = self.vec.batch.constraints
+            self.probe_vecs = {k: BaxterVector(c.task_config(), constraints, n,
+                                               tuple(float(j == k) for j in range(len(START_CLASSES))))
+                               for k in range(1, len(START_CLASSES))}
+        for k, vec in self.probe_vecs.items():
+            seed_base = int(np.random.SeedSequence([PROBE_SEED_BASE, k, self.episodes]).generate_state(1)[0])
+            result = evaluate(lambda o: self.agent.act(o), vec, c.curriculum_probe, seed_base)
+            self.curriculum.record(np.full((c.curriculum_probe, 2), k), result.success)
+            self._writer.add_scalar(f"curriculum/probe_{START_CLASSES[k]}", result.success_rate, self.episodes)
 
     def _evaluate(self, started: float) -> None:
         c = self.config

@@ -198,5 +198,9 @@ def seeds_for(base: int, first: int, count: int) -> list[int]:
 
 EVAL_SEED_BASE = 2_147_483_647
 """Evaluation episodes use ``seeds_for(EVAL_SEED_BASE, 0, N)``: the same set for every run."""
+PROBE_SEED_BASE = 2_147_483_629
+"""Curriculum probes (``TrainConfig.curriculum_probe``) draw their placements from this base,
+the start class and the episode count: fresh placements at every probe, none shared with
+training or evaluation."""
 
 
