@@ -48,7 +48,25 @@ def test_resume_continues_and_refuses_a_second_start(run_dir, capsys):
 def test_eval_prints_success_and_return(run_dir, capsys):
     assert main(["eval", str(run_dir), "--episodes", "3"]) == 0
     out = capsys.readouterr().out
-    assert "success rate" in out and "/3)" in out
+    assert "success rate" in out and "/3)" in out and "starting at" not in out
+
+
+def test_eval_from_later_starts_puts_both_arms_there(run_dir, capsys, monkeypatch):
+    """--start align: every evaluation episode begins with both arms holding their boxes."""
+    from dualarm.training import evaluation
+
+    starts = []
+    real = evaluation.evaluate
+
+    def spy(act, vec, episodes, *a, **k):
+        result = real(act, vec, episodes, *a, **k)
+        starts.append(vec.starts())
+        return result
+
+    monkeypatch.setattr(evaluation, "evaluate", spy)
+    assert main(["eval", str(run_dir), "--episodes", "3", "--start", "align"]) == 0
+    assert "both arms starting at align" in capsys.readouterr().out
+    assert (starts[0] == 2).all()
 
 
 def test_export_writes_time_joints_and_grip(run_dir, tmp_path, capsys):

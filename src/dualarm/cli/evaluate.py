@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from dualarm.cli.arguments import run_options
+from dualarm.cli.arguments import positive_int, run_options
+from dualarm.task import SUBTASKS
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
@@ -12,12 +13,19 @@ def cmd_eval(args: argparse.Namespace) -> int:
     from dualarm.training.evaluation import evaluate
     from dualarm.training.loop import make_vector_env
     from dualarm.training.policy import load_policy
+    from dualarm.training.vector import BaxterVector
 
     config, agent, info = load_policy(args.run, args.checkpoint)
-    vec = make_vector_env(config, min(config.num_envs, args.episodes))
+    n = min(config.num_envs, args.episodes)
+    if args.start == "reach":
+        vec = make_vector_env(config, n)
+    else:          # both arms start at this sub-task, as the training start states do
+        probs = tuple(float(name == args.start) for name in SUBTASKS)
+        vec = BaxterVector(config.task_config(), config.load_constraints(), n, probs)
     result = evaluate(lambda o: agent.act(o), vec, args.episodes)
+    start = "" if args.start == "reach" else f", both arms starting at {args.start}"
     print(f"{info['checkpoint']} (after {info['episodes']} training episodes), "
-          f"{args.episodes} evaluation episodes:")
+          f"{args.episodes} evaluation episodes{start}:")
     print(f"  success rate  {result.success_rate:.3f} ({int(result.success.sum())}/{args.episodes})")
     print(f"  return        {result.mean_return:.1f} (mean, both arms)")
     print(f"  steps         {result.steps.mean():.1f} (mean)")
@@ -29,5 +37,9 @@ def add_eval_command(sub) -> None:
     ev = sub.add_parser("eval", help="success rate and return of a trained policy",
                         description="Evaluate a run's policy on the fixed set of evaluation episodes.")
     run_options(ev)
-    ev.add_argument("--episodes", type=int, default=100)
+    ev.add_argument("--episodes", type=positive_int, default=100)
+    ev.add_argument("--start", choices=SUBTASKS, default="reach",
+                    help="the sub-task both arms start at: reach (the normal reset, default), "
+                         "grasp (at the boxes, fingers open) or align (holding them): how "
+                         "well each link of the task is learned")
     ev.set_defaults(func=cmd_eval)
