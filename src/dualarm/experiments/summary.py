@@ -157,6 +157,8 @@ def summarize_condition(condition: str, runs: list[Run], window: int = 100,
         target: success rate of "episodes to target".
     """
     n = min(r.episodes for r in runs)
+    # Training success from later starts is not the task's: measure those runs on evaluations.
+    on_evals = any(r.later_starts for r in runs)
     ma_return = np.stack([trailing_mean(r.return_total[:n], window)[0] for r in runs])
     ma_success = np.stack([trailing_mean(r.success[:n], window)[0] for r in runs])
     conv = [convergence(r.return_total[:n], window) for r in runs]
@@ -172,13 +174,21 @@ def summarize_condition(condition: str, runs: list[Run], window: int = 100,
     return ConditionSummary(
         condition=condition, runs=runs, episodes=n, ma_return=ma_return, ma_success=ma_success,
         convergence=conv,
-        episodes_to_target=SeedStat.of([episodes_to_target(r.success[:n], target, window)
+        episodes_to_target=SeedStat.of([_first_evaluation_at(r, n, target) if on_evals
+                                        else episodes_to_target(r.success[:n], target, window)
                                         for r in runs]),
         convergence_episode=SeedStat.of([c.episode for c in conv]),
         convergence_time_s=SeedStat.of(conv_time),
-        max_avg_success=SeedStat.of([max_average(r.success[:n], window) for r in runs]),
+        max_avg_success=SeedStat.of([float(np.max(r.eval_success[r.eval_episode <= n], initial=0.0))
+                                     if on_evals else max_average(r.success[:n], window) for r in runs]),
         final_eval_success=SeedStat.of(final_eval),
         eval_episode=np.array(common, dtype=int), eval_success=eval_success)
+
+def _first_evaluation_at(run: Run, n: int, target: float) -> int | None:
+    """The first evaluation episode (<= n) whose success is at least ``target``, or None."""
+    hit = (run.eval_episode <= n) & (run.eval_success >= target)
+    return int(run.eval_episode[hit][0]) if hit.any() else None
+
 
 def build_report(comparison_dir: str | Path, window: int = 100, target: float = TARGET_SUCCESS) -> Report:
     """Read every run under ``comparison_dir`` and summarise each condition.
@@ -237,6 +247,12 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
         if s.episodes < window:
             notes.append(f"{s.condition}: {s.episodes} episodes, fewer than the {window}-episode "
                          "window: no full-window average yet")
+    later = sorted(c for c, s in conditions.items() if any(r.later_starts for r in s.runs))
+    if later:
+        notes.append(f"{', '.join(later)}: training episodes start at later sub-tasks too "
+                     "(start_probs), so episodes to target success and max success are read from "
+                     "the evaluations (deterministic policy, normal reset), not from training "
+                     "success; convergence still reads training returns")
     lengths = {s.episodes for s in conditions.values()}
     if len(lengths) > 1:
         notes.append("the conditions cover different episode ranges ("
