@@ -21,6 +21,7 @@ def _percentile(text: str) -> float:
         raise argparse.ArgumentTypeError(f"must be in [0, 50), got {text!r}")
     return value
 
+
 def cmd_constraints_extract(args: argparse.Namespace) -> int:
     """Eq. 12 over a folder of demonstrations -> constraints YAML."""
     from dualarm.constraints.extraction import constraints_from_folder
@@ -51,6 +52,7 @@ def describe(cs) -> str:
                                         for c, lo, hi in zip(JOINT_COLUMNS, seg.lower, seg.upper)) + " deg")
     return "\n".join(lines)
 
+
 def cmd_constraints_plot(args: argparse.Namespace) -> int:
     """Demonstrations' joint curves with the constraint bands."""
     from dualarm.demos.loading import load_demo_dir
@@ -63,6 +65,7 @@ def cmd_constraints_plot(args: argparse.Namespace) -> int:
     path = plot_constraints(cs, demos, labels, args.output)
     print(f"wrote {path}", file=sys.stderr)
     return 0
+
 
 def cmd_constraints_analyze(args: argparse.Namespace) -> int:
     """Volume fractions and the expert's share of steps inside, for one or more constraint files."""

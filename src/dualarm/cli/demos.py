@@ -16,22 +16,30 @@ from dualarm.errors import InputError
 
 
 def demo_dir_of(args: argparse.Namespace) -> Path:
+    """The command's demonstration folder: DEMO_DIR, or the shipped set."""
     return Path(args.demo_dir) if args.demo_dir is not None else DEFAULT_DEMO_DIR
 
-def mapping_options_of(args: argparse.Namespace):
+
+def mapping_options_of(args: argparse.Namespace) -> MappingOptions:
+    """The mapping options (calibration window, heading, low-pass) the command was given."""
     return MappingOptions(calib_seconds=args.calib_seconds, calib_start=args.calib_start, heading=args.heading,
                           lowpass_hz=args.lowpass_hz)
 
+
 def auto_windows(demos, args) -> dict[str, np.ndarray]:
+    """Demo name -> (2, 3, 2) sub-task windows (s) from automatic segmentation."""
     from dualarm.demos.segmentation import segment_demo
 
     calib_end = args.calib_start + args.calib_seconds
     return {d.name: segment_demo(d.time, d.q, None if args.no_grip else d.grip, calib_end_s=calib_end,
                                  demo=d.name) for d in demos}
 
+
 def check_suffix(path: Path, suffixes: tuple[str, ...]) -> None:
+    """Refuse an output file whose name does not end in one of ``suffixes``."""
     if not path.name.lower().endswith(suffixes):
         raise InputError(f"output must end in {' or '.join(suffixes)}", source=str(path))
+
 
 def cmd_demos_generate(args: argparse.Namespace) -> int:
     """Generate a demonstration set (IMU CSVs and labels) from the scripted expert."""
@@ -45,6 +53,7 @@ def cmd_demos_generate(args: argparse.Namespace) -> int:
             print(f"{d.name}: env seed {d.env_seed}, {d.time[-1]:.2f} s, {len(d.time)} samples", file=sys.stderr)
         print(f"wrote {len(paths) - 1} recordings and {paths[-1].name} in {out}/", file=sys.stderr)
     return 0
+
 
 def cmd_demos_segment(args: argparse.Namespace) -> int:
     """Segment demonstrations automatically; compare with labels when there are any."""
@@ -90,6 +99,7 @@ def demo_dir_argument(p: argparse.ArgumentParser, flag: bool = False) -> None:
     else:
         p.add_argument("demo_dir", type=InputPath, nargs="?", metavar="DEMO_DIR", help=help_)
 
+
 def mapping_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--calib-seconds", type=non_negative, default=1.0, metavar="S",
                    help="zero-pose calibration window, s (default: 1.0)")
@@ -100,6 +110,7 @@ def mapping_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--lowpass-hz", type=non_negative, default=DEFAULT_LOWPASS_HZ, metavar="HZ",
                    help=f"zero-phase low-pass cut-off on the joint angles, 0 for none "
                         f"(default: {DEFAULT_LOWPASS_HZ:g})")
+
 
 def labels_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--labels", type=InputPath, metavar="FILE.csv",

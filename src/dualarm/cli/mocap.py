@@ -24,6 +24,7 @@ def _seconds(allow_zero: bool):
         return value
     return parse
 
+
 def mapping_summary(result, rec) -> str:
     """A few human-readable lines about a mapping result."""
     from dualarm.task import JOINT_COLUMNS
@@ -51,6 +52,7 @@ def mapping_summary(result, rec) -> str:
         lines.append("clipped to Baxter's limits: none")
     return "\n".join(lines)
 
+
 def map_file(path: Path, args: argparse.Namespace):
     from dualarm.mocap.io import read_recording
     from dualarm.mocap.mapping import map_recording
@@ -59,11 +61,13 @@ def map_file(path: Path, args: argparse.Namespace):
     return rec, map_recording(rec, calib_seconds=args.calib_seconds, calib_start=args.calib_start,
                               heading=args.heading)
 
+
 def write_joint_table(path: Path, time: np.ndarray, q: np.ndarray) -> None:
     from dualarm.mocap.io import write_table_csv
     from dualarm.mocap.joint_angles import JOINT_COLUMNS
 
     write_table_csv(path, ["time", *JOINT_COLUMNS], np.column_stack([time, q]))
+
 
 def cmd_mocap_joints(args: argparse.Namespace) -> int:
     rec, result = map_file(args.input, args)
@@ -78,6 +82,7 @@ def cmd_mocap_joints(args: argparse.Namespace) -> int:
         print(mapping_summary(result, rec), file=sys.stderr)
         print(f"wrote {args.output} ({'Baxter' if args.robot else 'human'} joint angles, rad)", file=sys.stderr)
     return 0
+
 
 def write_figures(out: Path, rec, result, instants_s: list[float] | None) -> list[Path]:
     from dualarm.kinematics import BAXTER_JOINT_LIMITS
@@ -104,11 +109,13 @@ def write_figures(out: Path, rec, result, instants_s: list[float] | None) -> lis
                              heading_estimates=result.heading),
     ]
 
+
 def cmd_mocap_plot(args: argparse.Namespace) -> int:
     rec, result = map_file(args.input, args)
     for path in write_figures(args.output, rec, result, args.instants):
         print(f"wrote {path}", file=sys.stderr)
     return 0
+
 
 def cmd_mocap_example(args: argparse.Namespace) -> int:
     from dualarm.mocap.io import write_csv
@@ -118,11 +125,13 @@ def cmd_mocap_example(args: argparse.Namespace) -> int:
     print(f"wrote {args.output}", file=sys.stderr)
     return 0
 
+
 def _name_map(text: str) -> dict[str, str]:
     pairs = [item.split("=", 1) for item in text.split(",") if item.strip()]
     if not pairs or any(len(p) != 2 or not p[0].strip() or not p[1].strip() for p in pairs):
         raise argparse.ArgumentTypeError(f"expected NAME=SENSOR pairs separated by commas, got {text!r}")
     return {name.strip(): sensor.strip() for name, sensor in pairs}
+
 
 def _comma_floats(text: str) -> list[float]:
     try:

@@ -102,7 +102,6 @@ def read_grip_events(path: str | os.PathLike) -> np.ndarray | None:
     return out
 
 
-
 def gzip_bytes(text: str) -> bytes:
     """gzip of ``text`` (UTF-8) with no file name and time stamp 0 in the header: reproducible."""
     buffer = io.BytesIO()

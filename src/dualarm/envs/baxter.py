@@ -58,6 +58,7 @@ def closed_gap(config: TaskConfig) -> float:
     """Largest finger gap (m) at which the fingers count as closed on a box."""
     return 2 * config.scene.box_half_size + config.grasp_gap_margin
 
+
 #: Per-arm observation layout (paper Section 3.2.1.2): name -> size. "joint_angles" is
 #: present only when the configuration asks for it.
 OBS_LAYOUT = (

@@ -24,11 +24,14 @@ from dualarm.task import CONDITION_NAMES, TARGET_SUCCESS
 def _num(x: float | None, digits: int) -> str:
     return "" if x is None or not math.isfinite(x) else f"{x:.{digits}f}"
 
+
 def _csv_num(x: float | None) -> str:
     return "" if x is None or not math.isfinite(x) else f"{x:.10g}"
 
+
 _DIGITS = {"episodes_to_target": 0, "convergence_episode": 0, "convergence_time_s": 0,
            "max_avg_success": 3, "final_eval_success": 3}
+
 
 def _cell(stat: SeedStat, quantity: str, count: bool = True) -> str:
     d = _DIGITS[quantity]
@@ -41,6 +44,7 @@ def _cell(stat: SeedStat, quantity: str, count: bool = True) -> str:
     if count:
         text += f" ({stat.reached}/{stat.seeds}{' †' if stat.partial else ''})"
     return text
+
 
 def summary_rows(report: Report) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the human-readable per-condition table (strings)."""
@@ -64,6 +68,7 @@ def summary_rows(report: Report) -> tuple[list[str], list[list[str]]]:
             *("" if v is None else f"{v:g}" for v in paper)])
     return header, rows
 
+
 def ratio_rows(report: Report) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the ratio table: quantity, ratio, ours, the paper's, remarks."""
     header = ["quantity", "ratio", "this comparison", "paper", "remarks"]
@@ -82,6 +87,7 @@ def ratio_rows(report: Report) -> tuple[list[str], list[list[str]]]:
                          "n/a" if ours is None else f"{ours:.2f}" + (" †" if note else ""),
                          paper_text, note])
     return header, rows
+
 
 def run_rows(report: Report) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the per-run table."""
@@ -106,6 +112,7 @@ def run_rows(report: Report) -> tuple[list[str], list[list[str]]]:
         rows.append([r.condition, str(r.seed), str(r.episodes), wall, to_target, conv,
                      relative_to_root(r.path, report.source), "; ".join(remarks)])
     return header, rows
+
 
 def csv_table(report: Report) -> str:
     """``table.csv``: one row per condition, plain numbers (empty = not available)."""
@@ -143,6 +150,7 @@ def csv_table(report: Report) -> str:
         w.writerow(row)
     return text.getvalue()
 
+
 def _md_table(header: list[str], rows: list[list[str]]) -> str:
     def esc(x: str) -> str:
         return x.replace("|", "\\|")
@@ -150,11 +158,13 @@ def _md_table(header: list[str], rows: list[list[str]]) -> str:
     lines += ["| " + " | ".join(map(esc, r)) + " |" for r in rows]
     return "\n".join(lines)
 
+
 def _html_table(header: list[str], rows: list[list[str]]) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "\n".join("<tr>" + "".join(f"<td>{html.escape(x)}</td>" for x in r) + "</tr>"
                      for r in rows)
     return f"<table>\n<thead><tr>{head}</tr></thead>\n<tbody>\n{body}\n</tbody>\n</table>"
+
 
 def definitions(report: Report) -> list[str]:
     """The definitions behind the numbers, one paragraph each, with this report's settings."""
@@ -188,11 +198,14 @@ def definitions(report: Report) -> list[str]:
         "range (1 to the shortest run's length); the longer runs' later episodes are not used.",
     ]
 
+
 FIGURES = {"fig6": "fig6_return.png", "fig7": "fig7_success.png", "fig8": "fig8_convergence_time.png"}
+
 
 def _write_text(path: Path, text: str) -> None:
     with atomic_open(path) as f:
         f.write(text.encode())
+
 
 def markdown(report: Report) -> str:
     """``table.md``: the per-condition table, the ratios, the notes and the definitions."""
@@ -205,6 +218,7 @@ def markdown(report: Report) -> str:
         parts += ["", "## Notes", ""] + [f"- {n}" for n in report.notes]
     parts += ["", "## Definitions", ""] + [f"- {d}" for d in definitions(report)]
     return "\n".join(parts) + "\n"
+
 
 def html_page(report: Report) -> str:
     """``index.html``: figures (PNG files beside it), tables, notes, definitions, runs."""
@@ -232,6 +246,7 @@ def html_page(report: Report) -> str:
             f"<title>dualarm comparison report</title><style>{style}</style></head><body>\n"
             + "\n".join(body) + "\n</body></html>\n")
 
+
 def save_report(report: Report, out: str | Path) -> Path:
     """Write the figures, table.csv, table.md and index.html of ``report`` into ``out``
     (created if missing), each atomically, index.html last. Returns the path of index.html."""
@@ -247,6 +262,7 @@ def save_report(report: Report, out: str | Path) -> Path:
     index = out / "index.html"
     _write_text(index, html_page(report))
     return index
+
 
 def write_report(comparison_dir: str | Path, out: str | Path | None = None, window: int = 100,
                  target: float = TARGET_SUCCESS) -> Path:

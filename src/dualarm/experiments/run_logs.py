@@ -19,6 +19,7 @@ METRICS_READ = ("episode", "wall_time_s", "return_total", "success")
 #: Columns an eval.csv must have when it has rows.
 EVAL_READ = ("episode", "success_rate")
 
+
 @dataclass(frozen=True, eq=False)
 class Run:
     """The curves of one training run directory.
@@ -60,6 +61,7 @@ class Run:
         """True when the run logged fewer episodes than its config asks for."""
         return self.episodes < self.planned_episodes
 
+
 def find_run_dirs(comparison_dir: str | Path, depth: int = 2) -> list[Path]:
     """Directories holding ``config.yaml`` and ``metrics.csv``: ``comparison_dir`` itself and
     those up to ``depth`` levels below it (hidden ones skipped), sorted by path."""
@@ -73,6 +75,7 @@ def find_run_dirs(comparison_dir: str | Path, depth: int = 2) -> list[Path]:
             level = [c for p in level for c in sorted(p.iterdir())
                      if c.is_dir() and not c.name.startswith(".")]
     return sorted(found)
+
 
 def _read_columns(path: Path, required: tuple[str, ...]) -> tuple[dict[str, np.ndarray], list[str]]:
     """Columns ``required`` of a CSV file as float arrays (finite values only).
@@ -119,6 +122,7 @@ def _read_columns(path: Path, required: tuple[str, ...]) -> tuple[dict[str, np.n
                                  row=int(i) + 1, column=name)
         out[name] = values if values is not None else np.array(cells, dtype=float)
     return out, notes
+
 
 def load_run(run_dir: str | Path) -> Run:
     """Read one run directory (config.yaml, metrics.csv, eval.csv if present).

@@ -48,6 +48,7 @@ QUANTITY_NAMES = {
     "final_eval_success": "final evaluation success",
 }
 
+
 @dataclass(frozen=True, eq=False)
 class SeedStat:
     """A per-seed quantity summarised over the seeds of a condition.
@@ -79,6 +80,7 @@ class SeedStat:
     def partial(self) -> bool:
         """Some seeds, but not all, reached the criterion."""
         return 0 < self.reached < self.seeds
+
 
 @dataclass(frozen=True, eq=False)
 class ConditionSummary:
@@ -123,6 +125,7 @@ class ConditionSummary:
     def stat(self, quantity: str) -> SeedStat:
         return getattr(self, quantity)
 
+
 @dataclass
 class Report:
     """Everything the report shows.
@@ -145,6 +148,7 @@ class Report:
     conditions: dict[str, ConditionSummary]
     ratios: dict[str, dict[tuple[str, str], float | None]]
     notes: list[str] = field(default_factory=list)
+
 
 def summarize_condition(condition: str, runs: list[Run], window: int = 100,
                         target: float = TARGET_SUCCESS) -> ConditionSummary:
@@ -183,6 +187,7 @@ def summarize_condition(condition: str, runs: list[Run], window: int = 100,
                                      if on_evals else max_average(r.success[:n], window) for r in runs]),
         final_eval_success=SeedStat.of(final_eval),
         eval_episode=np.array(common, dtype=int), eval_success=eval_success)
+
 
 def _first_evaluation_at(run: Run, n: int, target: float) -> int | None:
     """The first evaluation episode (<= n) whose success is at least ``target``, or None."""
@@ -271,12 +276,14 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
     return Report(source=root, window=int(window), target=float(target), runs=runs,
                   conditions=conditions, ratios=ratios, notes=notes)
 
+
 def relative_to_root(path: Path, root: Path) -> str:
     try:
         rel = path.relative_to(root)
         return str(rel) if str(rel) != "." else path.name
     except ValueError:
         return str(path)
+
 
 def paper_ratio(quantity: str, pair: tuple[str, str]) -> tuple[float, bool]:
     """The paper's ratio of ``quantity`` for ``pair`` and whether its text quotes it (else it
@@ -287,10 +294,12 @@ def paper_ratio(quantity: str, pair: tuple[str, str]) -> tuple[float, bool]:
     values = PAPER[quantity]
     return values[pair[0]] / values[pair[1]], False
 
+
 def paper_value(report: Report, quantity: str, condition: str) -> float | None:
     if quantity == "episodes_to_target" and not math.isclose(report.target, TARGET_SUCCESS):
         return None
     return PAPER.get(quantity, {}).get(condition)
+
 
 def ratio_note(report: Report, quantity: str, pair: tuple[str, str]) -> str:
     """Why a ratio is missing, or which of its means cover only some seeds ("" if neither)."""

@@ -38,7 +38,6 @@ from dualarm.training.run_dir import (EVAL_COLUMNS, CheckpointError, CsvLog, Run
 from dualarm.training.vector import PROBE_SEED_BASE, BaxterVector, ParallelEnvVector, VectorEnv, seeds_for
 
 
-
 class TrainingDiverged(DualarmError, RuntimeError):
     """A loss became NaN or infinite; the run stopped and its last good checkpoint is kept."""
 
