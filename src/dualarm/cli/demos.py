@@ -26,15 +26,6 @@ def mapping_options_of(args: argparse.Namespace) -> MappingOptions:
                           lowpass_hz=args.lowpass_hz)
 
 
-def auto_windows(demos, args) -> dict[str, np.ndarray]:
-    """Demo name -> (2, 3, 2) sub-task windows (s) from automatic segmentation."""
-    from dualarm.demos.segmentation import segment_demo
-
-    calib_end = args.calib_start + args.calib_seconds
-    return {d.name: segment_demo(d.time, d.q, None if args.no_grip else d.grip, calib_end_s=calib_end,
-                                 demo=d.name) for d in demos}
-
-
 def check_suffix(path: Path, suffixes: tuple[str, ...]) -> None:
     """Refuse an output file whose name does not end in one of ``suffixes``."""
     if not path.name.lower().endswith(suffixes):
@@ -59,13 +50,13 @@ def cmd_demos_segment(args: argparse.Namespace) -> int:
     """Segment demonstrations automatically; compare with labels when there are any."""
     from dualarm.demos.labels import read_labels, write_labels
     from dualarm.demos.loading import load_demo_dir
-    from dualarm.demos.segmentation import segmentation_agreement
+    from dualarm.demos.segmentation import segment_demos, segmentation_agreement
 
     if args.output:
         check_suffix(args.output, (".csv",))
     demo_dir = demo_dir_of(args)
     demos, _ = load_demo_dir(demo_dir, options=mapping_options_of(args), require_labels=False, with_grip=True)
-    auto = auto_windows(demos, args)
+    auto = segment_demos(demos, args.calib_start + args.calib_seconds, use_grip=not args.no_grip)
     labels_path = Path(args.labels) if args.labels else demo_dir / LABELS_NAME
     if args.labels or labels_path.exists():
         labels = read_labels(labels_path)

@@ -13,15 +13,9 @@ def cmd_eval(args: argparse.Namespace) -> int:
     from dualarm.training.evaluation import evaluate
     from dualarm.training.loop import make_vector_env
     from dualarm.training.policy import load_policy
-    from dualarm.training.vector import BaxterVector
 
     config, agent, info = load_policy(args.run, args.checkpoint)
-    n = min(config.num_envs, args.episodes)
-    if args.start == "reach":
-        vec = make_vector_env(config, n)
-    else:          # both arms start at this sub-task, as the training start states do
-        probs = tuple(float(name == args.start) for name in SUBTASKS)
-        vec = BaxterVector(config.task_config(), config.load_constraints(), n, probs)
+    vec = make_vector_env(config, min(config.num_envs, args.episodes), start=SUBTASKS.index(args.start))
     result = evaluate(lambda o: agent.act(o), vec, args.episodes)
     start = "" if args.start == "reach" else f", both arms starting at {args.start}"
     print(f"{info['checkpoint']} (after {info['episodes']} training episodes), "

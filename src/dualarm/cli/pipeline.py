@@ -10,12 +10,12 @@ from dualarm.cli.arguments import InputPath, OutputDir, positive_int
 from dualarm.cli.compare import compare_request, grid_options
 from dualarm.cli.report import print_report
 from dualarm.demos.formats import LABELS_NAME
-from dualarm.errors import DualarmError
 
 
 def cmd_pipeline(args: argparse.Namespace) -> int:
     """Run every step (:func:`dualarm.experiments.pipeline.run_pipeline`); stop at the first
-    that fails. Exit status 2 for bad input, 1 when a run failed, 130 when interrupted."""
+    that fails. Exit status 2 for bad input (the step's error, from ``main``), 1 when a run
+    failed, 130 when interrupted."""
     from dualarm.experiments.backends import make_backend
     from dualarm.experiments.pipeline import PipelineStopped, run_pipeline
 
@@ -27,13 +27,8 @@ def cmd_pipeline(args: argparse.Namespace) -> int:
         print(f"\nstopped; {again} the runs in {args.output}", file=sys.stderr)
         return 130
     except PipelineStopped as stop:
-        cause = stop.__cause__
-        if not isinstance(cause, (DualarmError, OSError)):
-            raise
-        reason = cause if isinstance(cause, DualarmError) else f"{cause.filename or ''}: {cause.strerror or cause}"
-        print(f"dualarm: error: {reason}", file=sys.stderr)
         print(f"dualarm: {stop}; {again}", file=sys.stderr)
-        return 2
+        raise stop.__cause__ from None      # main turns bad input into one line and exit 2
     if result.report is None:
         failed = ", ".join(o.name for o in result.comparison.failed)
         print(f"dualarm: pipeline stopped at the training step: run(s) {failed} failed; {again}",

@@ -19,7 +19,7 @@ from dualarm.constraints.constraint_set import ConstraintSet, parse_segments
 from dualarm.demos.formats import DEFAULT_DEMO_DIR, LABELS_NAME, file_sha256
 from dualarm.demos.labels import DemoLabels
 from dualarm.demos.loading import DemoJoints, MappingOptions, load_demo_dir
-from dualarm.demos.segmentation import segment_demo
+from dualarm.demos.segmentation import segment_demos
 from dualarm.errors import InputError
 from dualarm.kinematics import BAXTER_JOINT_LIMITS
 from dualarm.task import ARMS, JOINTS_PER_ARM, SUBTASKS
@@ -191,9 +191,7 @@ def constraints_from_folder(demo_dir: str | os.PathLike | None, segments: str, *
     demos, labels = load_demo_dir(folder, labels_path, options, require_labels=not auto_segment,
                                   with_grip=auto_segment, progress=progress)
     if auto_segment:
-        calib_end = options.calib_start + options.calib_seconds
-        windows = {d.name: segment_demo(d.time, d.q, d.grip if use_grip else None, calib_end_s=calib_end,
-                                        demo=d.name) for d in demos}
+        windows = segment_demos(demos, options.calib_start + options.calib_seconds, use_grip)
         labels_file, origin = None, "automatic segmentation (dualarm.demos.segmentation.segment_demo)"
     else:
         windows = {n: lab.windows for n, lab in labels.items()}

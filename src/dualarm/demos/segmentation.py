@@ -149,6 +149,13 @@ def segment_demo(time: np.ndarray, q: np.ndarray, grip: np.ndarray | None = None
     return out
 
 
+def segment_demos(demos, calib_end_s: float, use_grip: bool = True) -> dict[str, np.ndarray]:
+    """Demo name -> (2, 3, 2) sub-task windows (s) of every ``DemoJoints`` by
+    :func:`segment_demo`, with their gripper events unless ``use_grip`` is False."""
+    return {d.name: segment_demo(d.time, d.q, d.grip if use_grip else None, calib_end_s=calib_end_s,
+                                 demo=d.name) for d in demos}
+
+
 def segmentation_agreement(time: np.ndarray, auto: np.ndarray, labels: np.ndarray) -> dict[str, np.ndarray]:
     """How well automatic windows agree with labelled ones on one demonstration.
 

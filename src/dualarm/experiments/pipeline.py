@@ -99,8 +99,6 @@ def run_pipeline(output: str | os.PathLike, request: CompareRequest, backend,
         begin()
         report = build_report(out)
         index = save_report(report, out / "report")
-    except KeyboardInterrupt:
-        raise
-    except Exception as exc:
+    except Exception as exc:        # not KeyboardInterrupt: an interrupted run resumes
         raise PipelineStopped(step, titles[step - 1]) from exc
     return PipelineResult(written, result, report, index)

@@ -92,8 +92,7 @@ class DADDPG:
         # the components action_l2 penalises: the real ones, less the grip where it is free
         self.penalty_mask = self.action_mask.clone()
         if c.free_grip:
-            for i, n in enumerate(act_sizes):
-                self.penalty_mask[i, :, n - 1] = 0.0
+            self.penalty_mask[torch.from_numpy(self._grip_columns)[:, None, :]] = 0.0
         self.noise = GaussianNoise(c.noise_std)
         # target smoothing noise draws from the learner's own stream, not torch's global one
         self.torch_rng = torch.Generator().manual_seed(seed + 1)

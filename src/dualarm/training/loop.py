@@ -55,19 +55,23 @@ class TrainResult:
 
 def make_vector_env(config: TrainConfig, num_envs: int,
                     make_env: Callable[[], object] | None = None, constraints=None,
-                    training: bool = False) -> VectorEnv:
+                    training: bool = False, start: int = 0) -> VectorEnv:
     """Copies of the run's environment: the Baxter task, or ``make_env()`` (a ParallelEnv).
 
     ``constraints``: the run's ``ConstraintSet`` if already loaded (else read from the config).
     ``training``: the copies that collect training episodes, which start as
-    ``config.start_probs`` says; otherwise (evaluation) every episode starts normally.
+    ``config.start_probs`` says; otherwise (evaluation) every episode starts normally, or,
+    with ``start`` k > 0, with both arms at sub-task ``START_CLASSES[k]`` (curriculum probes,
+    ``dualarm eval --start``).
     """
     if make_env is not None:
         return ParallelEnvVector(make_env, num_envs)
     if constraints is None:
         constraints = config.load_constraints()
-    return BaxterVector(config.task_config(), constraints, num_envs,
-                        config.start_probs if training else None,
+    probs = config.start_probs if training else None
+    if start:
+        probs = tuple(float(k == start) for k in range(len(START_CLASSES)))
+    return BaxterVector(config.task_config(), constraints, num_envs, probs,
                         approach_starts=training and config.approach_starts)
 
 
@@ -409,9 +413,7 @@ class Trainer:
         c = self.config
         if self.probe_vecs is None:
             n = min(c.num_envs, c.curriculum_probe)
-            constraints = self.vec.batch.constraints
-            self.probe_vecs = {k: BaxterVector(c.task_config(), constraints, n,
-                                               tuple(float(j == k) for j in range(len(START_CLASSES))))
+            self.probe_vecs = {k: make_vector_env(c, n, constraints=self.vec.batch.constraints, start=k)
                                for k in range(1, len(START_CLASSES))}
         for k, vec in self.probe_vecs.items():
             seed_base = int(np.random.SeedSequence([PROBE_SEED_BASE, k, self.episodes]).generate_state(1)[0])
