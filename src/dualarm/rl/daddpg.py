@@ -93,15 +93,18 @@ class DADDPG:
         self.penalty_mask = self.action_mask.clone()
         if c.free_grip:
             self.penalty_mask[torch.from_numpy(self._grip_columns)[:, None, :]] = 0.0
+        # the penalty's weight now: config.action_l2, unless the training loop schedules it
+        self.action_l2 = c.action_l2
         self.noise = GaussianNoise(c.noise_std)
         # target smoothing noise draws from the learner's own stream, not torch's global one
         self.torch_rng = torch.Generator().manual_seed(seed + 1)
         self.updates = 0
 
     def action_penalty(self, actions: torch.Tensor) -> torch.Tensor:
-        """``action_l2`` times the mean squared action per agent, (A,), from actions (A, B, U):
-        over every real component, or all but the grip with ``free_grip``."""
-        return self.config.action_l2 * (actions ** 2 * self.penalty_mask).mean(dim=(1, 2))
+        """``action_l2`` (the attribute: the config's, or the loop's schedule) times the mean
+        squared action per agent, (A,), from actions (A, B, U): over every real component, or
+        all but the grip with ``free_grip``."""
+        return self.action_l2 * (actions ** 2 * self.penalty_mask).mean(dim=(1, 2))
 
     # --------------------------------------------------------------- acting
     def policy(self, obs: torch.Tensor) -> torch.Tensor:

@@ -51,6 +51,11 @@ class TrainConfig:
             boxes, holding them) measure the curriculum's success rates, the way evaluations
             measure success; 0 measures them on the training episodes, whose exploration
             (noise, random actions) can hold a learned class below the threshold for good.
+        reach_action_l2: with ``start_curriculum``: the weight of the action penalty while
+            the curriculum's frontier is the normal start (reach); ``algo.action_l2`` applies
+            while it is later. The penalty that steadies the grasp and the carry also keeps
+            the arms still at home, where the value of moving is far off (docs/learning-runs.md,
+            round 7). None: ``algo.action_l2`` throughout.
         approach_starts: an arm that starts a training episode at reach begins a uniform
             fraction of the way from home to just above its box instead of at home (needs
             ``start_probs``): training starts that cover the approach to the box.
@@ -84,6 +89,7 @@ class TrainConfig:
     start_probs: tuple[float, float, float] = (1.0, 0.0, 0.0)
     start_curriculum: float = 0.0
     curriculum_probe: int = 0
+    reach_action_l2: float | None = None
     approach_starts: bool = False
     reward_heads: bool = False
     her_share: float = 0.0
@@ -125,6 +131,12 @@ class TrainConfig:
         if self.curriculum_probe and not (self.start_curriculum and self.eval_every):
             raise InputError("curriculum_probe measures the start_curriculum at every evaluation: "
                              "give start_curriculum and eval_every too")
+        if self.reach_action_l2 is not None:
+            if self.reach_action_l2 < 0:
+                raise InputError(f"reach_action_l2 must be >= 0, got {self.reach_action_l2}")
+            if not self.start_curriculum:
+                raise InputError("reach_action_l2 follows the start_curriculum's frontier: "
+                                 "give start_curriculum too")
         for name in ("start_curriculum", "approach_starts"):
             if getattr(self, name) and not self.uses_start_states:
                 raise InputError(f"{name} moves the start states: give start_probs other "

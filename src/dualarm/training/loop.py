@@ -291,6 +291,16 @@ class Trainer:
         return TrainResult(self.paths.root, self.episodes, self.env_steps, self.wall_time_s,
                            self.last_eval)
 
+    def scheduled_action_l2(self) -> float:
+        """The action penalty's weight for the next round: ``reach_action_l2`` while the
+        curriculum's frontier is the normal start, else ``algo.action_l2``. A function of the
+        curriculum's (checkpointed) state, so a resumed run continues the same schedule."""
+        c = self.config
+        if c.reach_action_l2 is not None and self.curriculum is not None \
+                and self.curriculum.frontier() == 0:
+            return c.reach_action_l2
+        return c.algo.action_l2
+
     def _crossed(self, before: int, every: int) -> bool:
         return every > 0 and before // every != self.episodes // every
 
@@ -301,6 +311,7 @@ class Trainer:
         agent.noise.reset(np.arange(v.num_envs) < n)
         if self.curriculum is not None:      # this round's starts, from the episodes so far
             v.set_start_probs(self.curriculum.probs())
+            agent.action_l2 = self.scheduled_action_l2()
         mask = agent.action_mask[:, 0].numpy()
         seen = []
 
@@ -451,6 +462,7 @@ class Trainer:
         w.add_scalar("train/success_rate_100", float(np.mean(self.recent_success)), self.episodes)
         if self.curriculum is not None:
             w.add_scalar("curriculum/frontier", self.curriculum.frontier(), self.episodes)
+            w.add_scalar("train/action_l2", self.agent.action_l2, self.episodes)
             for name, rate in zip(START_CLASSES, self.curriculum.success_rates()):
                 if rate is not None:
                     w.add_scalar(f"curriculum/success_from_{name}", rate, self.episodes)
