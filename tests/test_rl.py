@@ -66,6 +66,30 @@ def test_stacked_mlp_is_one_mlp_per_agent():
     assert not torch.equal(net.out.weight[0], net.out.weight[1])   # agents start different
 
 
+def test_the_first_stacks_alone_give_the_same_outputs_and_only_their_gradients():
+    net = StackedMLP(4, 4, 2, (8, 8), generator=torch.Generator().manual_seed(0), layer_norm=True)
+    x = torch.randn(4, 6, 4)
+    torch.testing.assert_close(net(x[:2], stacks=2), net(x)[:2])
+    net(x[:2], stacks=2).sum().backward()
+    for p in net.parameters():
+        assert p.grad[:2].abs().sum() > 0 and (p.grad[2:] == 0).all()
+
+
+def test_with_twin_critics_the_actor_climbs_the_first_twin_only():
+    """TD3: the actor's loss is -Q of the first twin of its own critic (plus the penalty);
+    changing the second twins changes the critic loss, not the actor's."""
+    a, b = small_agent(twin_critics=True), small_agent(twin_critics=True)
+    with torch.no_grad():
+        for p in b.critic.parameters():
+            p[2:] += 0.5                                   # stacks 2, 3: the second twins
+    batch = random_batch()
+    out_a, out_b = a.update(batch), b.update(batch)
+    assert out_a["actor_loss"] == pytest.approx(out_b["actor_loss"], rel=1e-6)
+    assert out_a["critic_loss"] != pytest.approx(out_b["critic_loss"], rel=1e-3)
+    for pa, pb in zip(a.actor.parameters(), b.actor.parameters()):
+        torch.testing.assert_close(pa, pb)
+
+
 def test_update_follows_equations_13_to_15():
     agent = small_agent()
     agent.normalizer.update(np.random.default_rng(0).normal(size=(50, 2, 7)))
@@ -212,6 +236,8 @@ def test_update_flops_counts_the_matmuls():
     fc = 2 * 2 * (17 * 16 + 16 * 16 + 16 * 1)
     assert agent.actor.flops_per_sample() == fa and agent.critic.flops_per_sample() == fc
     assert agent.update_flops(10) == 10 * (4 * fa + 6 * fc)
+    twins = small_agent(twin_critics=True)                 # the actor pass runs the first twins only
+    assert twins.update_flops(10) == 10 * (4 * fa + 4 * 2 * fc + 2 * fc)
 
 
 def test_normalizer_matches_numpy_and_clips():

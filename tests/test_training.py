@@ -340,6 +340,27 @@ def test_curriculum_probe_measures_the_later_starts_with_the_deterministic_polic
         curriculum_config(curriculum_probe=4)
 
 
+def test_reach_action_l2_applies_while_the_frontier_is_the_normal_start(tmp_path):
+    config = curriculum_config(start_curriculum=0.5, reach_action_l2=0.001,
+                               algo=DADDPGConfig(hidden=(16, 16), action_l2=0.5))
+    trainer = Trainer.start(config, tmp_path / "run", progress=False)
+    try:
+        assert trainer.curriculum.frontier() == 2 and trainer.scheduled_action_l2() == 0.5
+        for k in (2, 1):                       # the later classes succeed: frontier at reach
+            trainer.curriculum.record(np.full((64, 2), k), np.ones(64, bool))
+        assert trainer.curriculum.frontier() == 0 and trainer.scheduled_action_l2() == 0.001
+        trainer.run()                          # the rounds hand the weight to the learner
+        assert trainer.curriculum.frontier() == 0 and trainer.agent.action_l2 == 0.001
+        trainer.curriculum.record(np.full((64, 2), 1), np.zeros(64, bool))    # grasp unlearned
+        assert trainer.scheduled_action_l2() == 0.5
+    finally:
+        trainer.close()
+    with pytest.raises(ValueError, match="reach_action_l2 follows"):
+        TrainConfig(reach_action_l2=0.001)
+    with pytest.raises(ValueError, match="reach_action_l2 must be"):
+        curriculum_config(start_curriculum=0.5, reach_action_l2=-1.0)
+
+
 def test_curriculum_options_are_checked(tmp_path):
     with pytest.raises(ValueError, match="start_curriculum must be in"):
         TrainConfig(start_probs=(0.2, 0.2, 0.6), start_curriculum=1.5)

@@ -135,13 +135,15 @@ class DADDPG:
         return actions
 
     # ------------------------------------------------------------- learning
-    def _critic_input(self, obs_n: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+    def _critic_input(self, obs_n: torch.Tensor, actions: torch.Tensor,
+                      copies: int | None = None) -> torch.Tensor:
         """Critic input (K, B, A*O + U): the whole state s = (s_1, ..., s_A) from normalised
-        obs (A, B, O), next to each critic's own agent's action from actions (A, B, U)."""
+        obs (A, B, O), next to each critic's own agent's action from actions (A, B, U).
+        K = A x ``copies`` (default: all critics per agent; 1 feeds only the first twins)."""
         a, b, o = obs_n.shape
-        k = a * self.critics_per_agent
-        s = obs_n.transpose(0, 1).reshape(1, b, a * o).expand(k, b, a * o)
-        return torch.cat([s, actions.repeat(self.critics_per_agent, 1, 1)], -1)
+        copies = self.critics_per_agent if copies is None else copies
+        s = obs_n.transpose(0, 1).reshape(1, b, a * o).expand(a * copies, b, a * o)
+        return torch.cat([s, actions.repeat(copies, 1, 1)], -1)
 
     def _per_agent(self, q: torch.Tensor) -> torch.Tensor:
         """Critic outputs (K, B, H) -> (critics_per_agent, A, B, H)."""
@@ -177,7 +179,10 @@ class DADDPG:
         c = self.config
         a_pi = self.actor(o) * self.action_mask
         self.critic.requires_grad_(False)
-        q_pi = self.q_total(self._per_agent(self.critic(self._critic_input(o, a_pi)))[0])
+        # only the first twin of each agent's critics scores the actor (TD3): the first A
+        # stacked critics, run alone
+        a = self.num_agents
+        q_pi = self.q_total(self.critic(self._critic_input(o, a_pi, copies=1), stacks=a))
         self.critic.requires_grad_(True)
         loss = (-q_pi.mean(dim=(1, 2)) + self.action_penalty(a_pi)).sum()
         if demo_rows and c.bc_weight > 0:
@@ -256,12 +261,14 @@ class DADDPG:
         """Floating-point operations of one ``update`` (matmuls only; forward = 1, backward = 2).
 
         Critic: target actor and target critic forward, critic forward and backward.
-        Actor: actor forward and backward, critic forward and input-gradient backward
+        Actor: actor forward and backward, the first twins' forward and input-gradient backward
         (weight gradients of the critic are not computed in the actor pass).
         """
         b = batch_size or self.config.batch_size
         fa, fc = self.actor.flops_per_sample(), self.critic.flops_per_sample()  # all stacks
-        return b * (fa + fc + 3 * fc + 3 * fa + 2 * fc)
+        # target actor and critic; critic forward and backward; actor forward and backward;
+        # the first twins' forward and input gradient in the actor pass
+        return b * (fa + fc + 3 * fc + 3 * fa + 2 * fc // self.critics_per_agent)
 
     # -------------------------------------------------------- saving/loading
     _PARTS = ("actor", "critic", "actor_target", "critic_target", "actor_opt", "critic_opt",

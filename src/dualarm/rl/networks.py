@@ -28,8 +28,9 @@ class StackedLinear(nn.Module):
         self.bias = nn.Parameter(
             (torch.rand(num_agents, 1, out_features, generator=generator) * 2 - 1) * bound)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return torch.baddbmm(self.bias, x, self.weight)
+    def forward(self, x: torch.Tensor, stacks: int | None = None) -> torch.Tensor:
+        """x (S, B, in) -> (S, B, out) through the first S maps (all when ``stacks`` is None)."""
+        return torch.baddbmm(self.bias[:stacks], x, self.weight[:stacks])
 
 
 class StackedLayerNorm(nn.Module):
@@ -41,8 +42,9 @@ class StackedLayerNorm(nn.Module):
         self.gain = nn.Parameter(torch.ones(num_agents, 1, width))
         self.bias = nn.Parameter(torch.zeros(num_agents, 1, width))
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return torch.nn.functional.layer_norm(x, (self.width,)) * self.gain + self.bias
+    def forward(self, x: torch.Tensor, stacks: int | None = None) -> torch.Tensor:
+        return torch.nn.functional.layer_norm(x, (self.width,)) * self.gain[:stacks] \
+            + self.bias[:stacks]
 
 
 class StackedMLP(nn.Module):
@@ -75,13 +77,15 @@ class StackedMLP(nn.Module):
         self.out = StackedLinear(num_agents, widths[-1], out_features, generator, final_scale)
         self.tanh_output = tanh_output
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, stacks: int | None = None) -> torch.Tensor:
+        """x (S, B, in) -> (S, B, out) through the first S networks (all if ``stacks`` is
+        None): a caller that needs only some of the stacked networks pays only for those."""
         for k, layer in enumerate(self.hidden):
-            x = layer(x)
+            x = layer(x, stacks)
             if self.norms is not None:
-                x = self.norms[k](x)
+                x = self.norms[k](x, stacks)
             x = torch.relu(x)
-        x = self.out(x)
+        x = self.out(x, stacks)
         return torch.tanh(x) if self.tanh_output else x
 
     def flops_per_sample(self) -> int:
