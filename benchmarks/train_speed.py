@@ -2,12 +2,13 @@
 choosing actions, storing transitions and gradient updates, with the update's GFLOP/s next
 to the matrix-multiply roofline measured in the same run.
 
-Run:  python benchmarks/train_speed.py [--config FILE.yaml] [--episodes 160] [--threads 1]
+Run:  python benchmarks/train_speed.py [--config FILE.yaml] [--episodes N] [--no-eval] [--threads 1]
 
-It trains a fresh run (in a temporary directory, evaluations off) for ``--episodes``
-episodes after a warm-up of ``--warmup`` episodes that is not counted, and reads the
-trainer's own timers (``Trainer.timing``). The last line extrapolates to a 10,000-episode
-run at the measured rate.
+It trains a fresh run (in a temporary directory) for ``--episodes`` episodes after a
+warm-up of ``--warmup`` episodes that is not counted, and reads the trainer's own timers
+(``Trainer.timing``). Evaluations (and curriculum probes) run as the config sets them, so
+the figure is a whole run's; ``--no-eval`` times the training rounds alone. The last line
+extrapolates to a 10,000-episode run at the measured rate.
 """
 
 from __future__ import annotations
@@ -29,29 +30,45 @@ from update_speed import matmul_gflops   # this folder is on the path when run a
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", type=Path, help="TrainConfig fields (YAML), as `dualarm train --config`")
-    parser.add_argument("--episodes", type=int, default=160, help="timed episodes (default 160)")
-    parser.add_argument("--warmup", type=int, default=64, help="untimed episodes first (default 64)")
+    parser.add_argument("--episodes", type=int, help="timed episodes (default: twice the "
+                        "config's eval_every, or 160 without evaluations)")
+    parser.add_argument("--warmup", type=int, help="untimed episodes first (default: eval_every, "
+                        "or 64 without evaluations)")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    parser.add_argument("--no-eval", action="store_true",
+                        help="turn evaluations and curriculum probes off: the training rounds alone")
     args = parser.parse_args()
     fields = yaml.safe_load(args.config.read_text()) if args.config else {}
-    config = TrainConfig.from_dict({**fields, "eval_every": 0, "torch_threads": args.threads,
-                                    "episodes": args.warmup, "checkpoint_minutes": 1e6},
+    fields = {**fields, "torch_threads": args.threads,
+              "checkpoint_minutes": 1e6}
+    if args.no_eval:
+        fields.update(eval_every=0, curriculum_probe=0)
+    every = TrainConfig.from_dict(fields, where=str(args.config or "defaults")).eval_every
+    episodes = args.episodes or (2 * every if every else 160)
+    warmup = args.warmup or (every if every else 64)
+    if every and (episodes % every or warmup % every):
+        # a run evaluates every eval_every episodes and at its end: multiples of eval_every
+        # time exactly one evaluation per eval_every episodes
+        parser.error(f"--episodes {episodes} and --warmup {warmup} must be multiples of the "
+                     f"config's eval_every ({every}), or give --no-eval")
+    config = TrainConfig.from_dict({**fields, "episodes": warmup},
                                    where=str(args.config or "defaults"))
     print(f"torch {torch.__version__}, {args.threads} thread(s), "
           f"{platform.processor() or platform.machine()}; condition {config.condition}, "
           f"{config.num_envs} copies, hidden {config.algo.hidden}, batch {config.algo.batch_size}, "
-          f"{config.algo.updates_per_step} updates/step")
+          f"{config.algo.updates_per_step} updates/step; evaluation every {config.eval_every} "
+          f"episodes ({config.eval_episodes} episodes, {config.curriculum_probe} probes per later start)")
     with tempfile.TemporaryDirectory() as tmp:
         trainer = Trainer.start(config, Path(tmp) / "run", progress=False)
         trainer.run()                                   # warm-up: replay fills, updates start
         before = dict(trainer.timing)
-        trainer.config = config.with_(episodes=args.warmup + args.episodes)
+        trainer.config = config.with_(episodes=warmup + episodes)
         start = time.perf_counter()
         trainer.run()
         total = time.perf_counter() - start
         t = {k: trainer.timing[k] - before[k] for k in before}
     env = t["collect_s"] - t["act_s"] - t["store_s"]
-    other = total - t["collect_s"] - t["update_s"]
+    other = total - t["collect_s"] - t["update_s"] - t["eval_s"]
     flops = trainer.agent.update_flops() * t["updates"]
     update_rate = flops / t["update_s"] / 1e9 if t["update_s"] else float("nan")
     h = config.algo.hidden[-1]
@@ -60,7 +77,7 @@ def main() -> None:
           f"{total:.1f} s: {t['episodes'] / total:.2f} episodes/s, {t['env_steps'] / total:.0f} env steps/s")
     for name, seconds in (("environment stepping", env), ("acting (policy + noise)", t["act_s"]),
                           ("storing transitions", t["store_s"]), ("gradient updates", t["update_s"]),
-                          ("logging, checkpoints", other)):
+                          ("evaluations, probes", t["eval_s"]), ("logging, checkpoints", other)):
         print(f"  {name:<26} {seconds:7.1f} s  {100 * seconds / total:5.1f} %")
     print(f"  update: {1e3 * t['update_s'] / max(t['updates'], 1):.2f} ms, {update_rate:.1f} GFLOP/s "
           f"against a {roofline:.1f} GFLOP/s matmul roofline ({update_rate / roofline:.2f})")

@@ -157,8 +157,9 @@ class Trainer:
         #: Seconds spent since this process started training, by part of a round
         #: (collect_s: the episodes, of which act_s choosing actions and store_s storing
         #: transitions, the rest stepping the environments; update_s: gradient updates).
+        # seconds and counts since this process started the run (benchmarks/train_speed.py)
         self.timing = {"collect_s": 0.0, "act_s": 0.0, "store_s": 0.0, "update_s": 0.0,
-                       "updates": 0, "episodes": 0, "env_steps": 0}
+                       "eval_s": 0.0, "updates": 0, "episodes": 0, "env_steps": 0}
         self.metrics = CsvLog(paths.metrics, columns)
         self.eval_log = CsvLog(paths.eval, list(EVAL_COLUMNS), consecutive=False)
         self._writer = None
@@ -275,9 +276,11 @@ class Trainer:
                 bar.update(len(rows))
                 evaluated = self._crossed(before, c.eval_every) or self.episodes >= c.episodes
                 if self.eval_vec is not None and evaluated:
+                    t = time.perf_counter()
                     self._evaluate(started)
                     if c.curriculum_probe:
                         self._probe_curriculum()
+                    self.timing["eval_s"] += time.perf_counter() - t
                 self.wall_time_s = time.perf_counter() - started
                 bar.set_postfix(self._postfix(), refresh=False)
                 due = (time.perf_counter() - last_checkpoint >= 60 * c.checkpoint_minutes
