@@ -171,6 +171,22 @@ def test_free_grip_leaves_each_agents_last_action_out_of_the_penalty():
     assert (free.action_penalty(motion) != free.action_penalty(a)).all()
 
 
+def test_a_penalty_weight_per_sample_replaces_action_l2():
+    """Equal weights give the scalar penalty; a weight of 0 on agent 0's rows leaves agent
+    0's actor to the critic alone, while agent 1's update is unchanged."""
+    batch = random_batch()
+    plain, same, free = (small_agent(action_l2=0.3) for _ in range(3))
+    out = plain.update(batch)
+    assert same.update({**batch, "penalty_weight": torch.full((8, 2), 0.3)})["actor_loss"] == \
+        pytest.approx(out["actor_loss"], rel=1e-6)
+    free.update({**batch, "penalty_weight": torch.tensor([[0.0, 0.3]]).expand(8, 2)})
+    for p_plain, p_same, p_free in zip(plain.actor.parameters(), same.actor.parameters(),
+                                       free.actor.parameters()):
+        torch.testing.assert_close(p_same, p_plain)
+        torch.testing.assert_close(p_free[1], p_plain[1])
+        assert not torch.allclose(p_free[0], p_plain[0])
+
+
 def test_layer_norm_critics_ignore_the_scale_of_their_hidden_pre_activations():
     net = StackedMLP(2, 4, 1, (8, 8), generator=torch.Generator().manual_seed(0), layer_norm=True)
     plain = StackedMLP(2, 4, 1, (8, 8), generator=torch.Generator().manual_seed(0))

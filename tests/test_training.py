@@ -361,6 +361,35 @@ def test_reach_action_l2_applies_while_the_frontier_is_the_normal_start(tmp_path
         curriculum_config(start_curriculum=0.5, reach_action_l2=-1.0)
 
 
+def test_far_action_l2_weighs_the_penalty_by_the_distance_to_the_box(tmp_path):
+    from dualarm.envs.baxter import observation_layout
+
+    config = curriculum_config(far_action_l2=0.001, near_box_radius=0.05, episodes=8,
+                               algo=DADDPGConfig(hidden=(16, 16), action_l2=0.5, batch_size=16,
+                                                 warmup_steps=50))
+    trainer = Trainer.start(config, tmp_path / "run", progress=False)
+    try:
+        rel = observation_layout(config.task_config().observes_joint_angles)["object_rel_pos"]
+        obs = torch.zeros(3, 2, trainer.vec.obs_size)
+        obs[0, :, rel] = torch.tensor([0.03, 0.0, 0.0])         # 3 cm from the box: near
+        obs[1, :, rel] = torch.tensor([0.0, 0.04, 0.04])        # 5.7 cm: far
+        obs[2, 0, rel] = torch.tensor([0.0, 0.0, -0.2])         # left far, right at the box
+        w = trainer.penalty_weight(obs)
+        assert w.shape == (3, 2)
+        torch.testing.assert_close(w, torch.tensor([[0.5, 0.5], [0.001, 0.001], [0.001, 0.5]]))
+        seen = []
+        update = trainer.agent.update
+        trainer.agent.update = lambda batch, rows=0: seen.append(batch["penalty_weight"]) or update(batch, rows)
+        trainer.run()
+        assert seen and all(b.shape == (16, 2) for b in seen)
+    finally:
+        trainer.close()
+    with pytest.raises(ValueError, match="far_action_l2 must be"):
+        curriculum_config(far_action_l2=-1.0)
+    with pytest.raises(ValueError, match="near_box_radius"):
+        curriculum_config(near_box_radius=0.0)
+
+
 def test_curriculum_options_are_checked(tmp_path):
     with pytest.raises(ValueError, match="start_curriculum must be in"):
         TrainConfig(start_probs=(0.2, 0.2, 0.6), start_curriculum=1.5)

@@ -100,11 +100,15 @@ class DADDPG:
         self.torch_rng = torch.Generator().manual_seed(seed + 1)
         self.updates = 0
 
-    def action_penalty(self, actions: torch.Tensor) -> torch.Tensor:
-        """``action_l2`` (the attribute: the config's, or the loop's schedule) times the mean
-        squared action per agent, (A,), from actions (A, B, U): over every real component, or
-        all but the grip with ``free_grip``."""
-        return self.action_l2 * (actions ** 2 * self.penalty_mask).mean(dim=(1, 2))
+    def action_penalty(self, actions: torch.Tensor, weight: torch.Tensor | None = None) -> torch.Tensor:
+        """The action penalty per agent, (A,), from actions (A, B, U): the mean squared action
+        over every real component (all but the grip with ``free_grip``), times ``action_l2``
+        (the attribute: the config's, or the loop's schedule), or times ``weight`` (A, B, 1),
+        a weight per sample and agent, before the mean over the batch."""
+        squared = actions ** 2 * self.penalty_mask
+        if weight is None:
+            return self.action_l2 * squared.mean(dim=(1, 2))
+        return (weight * squared.mean(dim=2, keepdim=True)).mean(dim=(1, 2))
 
     # --------------------------------------------------------------- acting
     def policy(self, obs: torch.Tensor) -> torch.Tensor:
@@ -172,10 +176,11 @@ class DADDPG:
         return y.clamp(-c.q_clip, c.q_clip) if c.q_clip > 0 else y
 
     def actor_loss(self, o: torch.Tensor, q_taken: torch.Tensor, a_taken: torch.Tensor,
-                   demo_rows: int = 0) -> torch.Tensor:
-        """Eq. 14 as a loss: -Q_i(s, mu_i(s_i)) through the actor only, plus ``action_l2``,
-        summed over agents. With ``bc_weight``, behaviour cloning on the last ``demo_rows``
-        rows where the critic rates the demonstrated action (``q_taken``) above the actor's."""
+                   demo_rows: int = 0, penalty_weight: torch.Tensor | None = None) -> torch.Tensor:
+        """Eq. 14 as a loss: -Q_i(s, mu_i(s_i)) through the actor only, plus the action
+        penalty (``action_penalty``, with ``penalty_weight`` (A, B, 1) if given), summed over
+        agents. With ``bc_weight``, behaviour cloning on the last ``demo_rows`` rows where the
+        critic rates the demonstrated action (``q_taken``) above the actor's."""
         c = self.config
         a_pi = self.actor(o) * self.action_mask
         self.critic.requires_grad_(False)
@@ -184,7 +189,7 @@ class DADDPG:
         a = self.num_agents
         q_pi = self.q_total(self.critic(self._critic_input(o, a_pi, copies=1), stacks=a))
         self.critic.requires_grad_(True)
-        loss = (-q_pi.mean(dim=(1, 2)) + self.action_penalty(a_pi)).sum()
+        loss = (-q_pi.mean(dim=(1, 2)) + self.action_penalty(a_pi, penalty_weight)).sum()
         if demo_rows and c.bc_weight > 0:
             q_demo = self.q_total(q_taken[0, :, -demo_rows:])
             better = (q_demo > q_pi[:, -demo_rows:]).detach().float()              # (A, D, 1)
@@ -205,7 +210,8 @@ class DADDPG:
 
         Args:
             batch: obs and next_obs (B, A, O), act (B, A, U), rew (B, A) or, with reward
-                heads, (B, A, H), and done (B,).
+                heads, (B, A, H), and done (B,); optionally penalty_weight (B, A), the action
+                penalty's weight per sample and agent in place of ``action_l2``.
             demo_rows: the last ``demo_rows`` rows of the batch are demonstrations (see
                 :meth:`actor_loss`).
 
@@ -228,7 +234,10 @@ class DADDPG:
         q = self._per_agent(self.critic(self._critic_input(o, a_taken)))
         critic_loss = ((y - q) ** 2).mean(dim=(2, 3)).sum()       # per head and sample, summed over critics
         # The actor climbs the critic as it is before this step's critic update.
-        actor_loss = self.actor_loss(o, q, a_taken, demo_rows)
+        weight = batch.get("penalty_weight")
+        if weight is not None:
+            weight = weight.transpose(0, 1).unsqueeze(-1)          # (A, B, 1)
+        actor_loss = self.actor_loss(o, q, a_taken, demo_rows, weight)
 
         if not (torch.isfinite(critic_loss) and torch.isfinite(actor_loss)):
             raise NonFiniteLoss(f"non-finite loss at update {self.updates + 1}: critic "

@@ -56,6 +56,12 @@ class TrainConfig:
             while it is later. The penalty that steadies the grasp and the carry also keeps
             the arms still at home, where the value of moving is far off (docs/learning-runs.md,
             round 7). None: ``algo.action_l2`` throughout.
+        far_action_l2: the weight of the action penalty for an arm whose grip site is more
+            than ``near_box_radius`` from its box (the observation's box-minus-grip offset);
+            ``algo.action_l2`` applies within it. The penalty steadies the grasp and the
+            carry, near the box; far from it, it holds the arm still at home
+            (docs/learning-runs.md, rounds 7-8). None: ``algo.action_l2`` everywhere.
+        near_box_radius: metres; see ``far_action_l2``.
         approach_starts: an arm that starts a training episode at reach begins a uniform
             fraction of the way from home to just above its box instead of at home (needs
             ``start_probs``): training starts that cover the approach to the box.
@@ -90,6 +96,8 @@ class TrainConfig:
     start_curriculum: float = 0.0
     curriculum_probe: int = 0
     reach_action_l2: float | None = None
+    far_action_l2: float | None = None
+    near_box_radius: float = 0.05
     approach_starts: bool = False
     reward_heads: bool = False
     her_share: float = 0.0
@@ -137,6 +145,10 @@ class TrainConfig:
             if not self.start_curriculum:
                 raise InputError("reach_action_l2 follows the start_curriculum's frontier: "
                                  "give start_curriculum too")
+        if self.far_action_l2 is not None and self.far_action_l2 < 0:
+            raise InputError(f"far_action_l2 must be >= 0, got {self.far_action_l2}")
+        if self.near_box_radius <= 0:
+            raise InputError(f"near_box_radius must be > 0, got {self.near_box_radius}")
         for name in ("start_curriculum", "approach_starts"):
             if getattr(self, name) and not self.uses_start_states:
                 raise InputError(f"{name} moves the start states: give start_probs other "
@@ -150,7 +162,8 @@ class TrainConfig:
         """The options set in this config that exist for the Baxter task only (a custom
         PettingZoo environment has no scripted expert, start states, targets or reward terms)."""
         used = {"start_probs": self.uses_start_states, "her_share": self.her_share > 0,
-                "reward_heads": self.reward_heads, "demo_episodes": self.demo_episodes > 0}
+                "reward_heads": self.reward_heads, "demo_episodes": self.demo_episodes > 0,
+                "far_action_l2": self.far_action_l2 is not None}
         return [name for name, on in used.items() if on]
 
     @property

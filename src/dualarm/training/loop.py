@@ -125,6 +125,11 @@ class Trainer:
             relabeller = goals(task, task.observes_joint_angles)
             self.sampler = HindsightSampler(self.buffer, relabeller.achieved, relabeller.relabel,
                                             config.her_share)
+        # far_action_l2: each arm's box-minus-grip offset in its observation, (3,) columns
+        self.rel_columns = None
+        if config.far_action_l2 is not None:
+            from dualarm.envs.baxter import observation_layout
+            self.rel_columns = observation_layout(task.observes_joint_angles)["object_rel_pos"]
         # Demonstrations are recorded again on resume (the expert and the physics are
         # deterministic); the normaliser's statistics then come from the checkpoint.
         self.demos = None
@@ -294,6 +299,13 @@ class Trainer:
         return TrainResult(self.paths.root, self.episodes, self.env_steps, self.wall_time_s,
                            self.last_eval)
 
+    def penalty_weight(self, obs: torch.Tensor) -> torch.Tensor:
+        """The action penalty's weight per sample and arm, (B, A), from raw observations
+        (B, A, O): ``far_action_l2`` where the grip site is more than ``near_box_radius`` m
+        from its box, the learner's ``action_l2`` within it."""
+        far = obs[..., self.rel_columns].norm(dim=-1) > self.config.near_box_radius
+        return torch.where(far, self.config.far_action_l2, self.agent.action_l2)
+
     def scheduled_action_l2(self) -> float:
         """The action penalty's weight for the next round: ``reach_action_l2`` while the
         curriculum's frontier is the normal start, else ``algo.action_l2``. A function of the
@@ -412,6 +424,8 @@ class Trainer:
             if demo_rows:
                 demos = self.demos.sample(self.rng, demo_rows)
                 batch = {k: torch.cat([batch[k], demos[k]]) for k in batch}
+            if self.rel_columns is not None:
+                batch["penalty_weight"] = self.penalty_weight(batch["obs"])
             try:
                 losses.append(self.agent.update(batch, demo_rows))
             except NonFiniteLoss as exc:
