@@ -141,3 +141,14 @@ def test_shipped_expert_demos_config_trains(tmp_path, capsys):
     assert saved["algo"]["twin_critics"] and saved["algo"]["reward_scale"] == 0.0025
     with open(out / "metrics.csv", newline="") as f:
         assert len(list(csv.DictReader(f))) == 16
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in (Path(__file__).resolve().parents[1]
+                                                         / "configs").glob("*.yaml")))
+def test_every_shipped_config_is_a_valid_train_config(name):
+    """Each file in configs/ loads as a TrainConfig (fields, types, cross-checks), so a
+    README command that names it does not fail at its first line."""
+    from dualarm.training.config import TrainConfig
+
+    config = TrainConfig.load(Path(__file__).resolve().parents[1] / "configs" / name)
+    assert config.episodes >= 1
