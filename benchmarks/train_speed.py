@@ -39,11 +39,11 @@ def main() -> None:
                         help="turn evaluations and curriculum probes off: the training rounds alone")
     args = parser.parse_args()
     fields = yaml.safe_load(args.config.read_text()) if args.config else {}
-    fields = {**fields, "torch_threads": args.threads,
-              "checkpoint_minutes": 1e6}
+    fields = {**fields, "torch_threads": args.threads, "checkpoint_minutes": 1e6}
     if args.no_eval:
         fields.update(eval_every=0, curriculum_probe=0)
-    every = TrainConfig.from_dict(fields, where=str(args.config or "defaults")).eval_every
+    config = TrainConfig.from_dict(fields, where=str(args.config or "defaults"))
+    every = config.eval_every
     episodes = args.episodes or (2 * every if every else 160)
     warmup = args.warmup or (every if every else 64)
     if every and (episodes % every or warmup % every):
@@ -51,8 +51,7 @@ def main() -> None:
         # time exactly one evaluation per eval_every episodes
         parser.error(f"--episodes {episodes} and --warmup {warmup} must be multiples of the "
                      f"config's eval_every ({every}), or give --no-eval")
-    config = TrainConfig.from_dict({**fields, "episodes": warmup},
-                                   where=str(args.config or "defaults"))
+    config = config.with_(episodes=warmup)
     print(f"torch {torch.__version__}, {args.threads} thread(s), "
           f"{platform.processor() or platform.machine()}; condition {config.condition}, "
           f"{config.num_envs} copies, hidden {config.algo.hidden}, batch {config.algo.batch_size}, "

@@ -161,8 +161,8 @@ class Trainer:
         columns += [f"{t}_{a}" for t in v.term_names for a in v.agents]
         #: Seconds spent since this process started training, by part of a round
         #: (collect_s: the episodes, of which act_s choosing actions and store_s storing
-        #: transitions, the rest stepping the environments; update_s: gradient updates).
-        # seconds and counts since this process started the run (benchmarks/train_speed.py)
+        #: transitions, the rest stepping the environments; update_s: gradient updates;
+        #: eval_s: evaluations and curriculum probes), and the counts of the same span.
         self.timing = {"collect_s": 0.0, "act_s": 0.0, "store_s": 0.0, "update_s": 0.0,
                        "eval_s": 0.0, "updates": 0, "episodes": 0, "env_steps": 0}
         self.metrics = CsvLog(paths.metrics, columns)
