@@ -69,6 +69,16 @@ def test_eval_from_later_starts_puts_both_arms_there(run_dir, capsys, monkeypatc
     assert (starts[0] == 2).all()
 
 
+def test_diagnose_counts_each_arms_outcome_from_each_start(run_dir, capsys):
+    assert main(["diagnose", str(run_dir), "--episodes", "2", "--start", "reach", "align"]) == 0
+    out = capsys.readouterr().out
+    assert "from the normal reset: success" in out and "from both arms at align" in out
+    assert "from both arms at grasp" not in out
+    rows = [line.split() for line in out.splitlines() if line.startswith("  ") and "outcome" not in line]
+    # each start's table counts 2 episodes per arm
+    assert sum(int(r[-2]) for r in rows) == 4 and sum(int(r[-1]) for r in rows) == 4
+
+
 def test_export_writes_time_joints_and_grip(run_dir, tmp_path, capsys):
     out = tmp_path / "trajectory.csv"
     assert main(["export", str(run_dir), "-o", str(out), "--seed", "4"]) == 0

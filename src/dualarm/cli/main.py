@@ -7,16 +7,16 @@ import sys
 import warnings
 
 from dualarm import __version__
-from dualarm.cli import (compare, constraints, demos, env, evaluate, export, mocap, pipeline, play,
-                         quickstart, report, train)
+from dualarm.cli import (compare, constraints, demos, diagnose, env, evaluate, export, mocap,
+                         pipeline, play, quickstart, report, train)
 from dualarm.cli.arguments import check_paths, option_names
 from dualarm.errors import DualarmError
 
 #: The top-level commands' modules, in the order ``dualarm --help`` lists them.
 COMMANDS = (quickstart.add_quickstart_command, mocap.add_mocap_command, env.add_env_command,
             demos.add_demos_command, constraints.add_constraints_command, train.add_train_command,
-            evaluate.add_eval_command, play.add_play_command, export.add_export_command,
-            report.add_report_command, compare.add_compare_command, pipeline.add_pipeline_command)
+            evaluate.add_eval_command, diagnose.add_diagnose_command, play.add_play_command,
+            export.add_export_command, report.add_report_command, compare.add_compare_command, pipeline.add_pipeline_command)
 
 
 def build_parser() -> argparse.ArgumentParser:
