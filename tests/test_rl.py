@@ -391,3 +391,19 @@ def test_random_actions_can_leave_the_grip_to_the_policy():
     np.testing.assert_allclose(a[:, 1, 2], deterministic[:, 1, 2])      # agent 1's grip: its 3rd of 3
     np.testing.assert_array_equal(a[:, :, 0], b[:, :, 0])               # the motion is random as before
     assert not np.allclose(b[:, 1, 2], deterministic[:, 1, 2])
+
+
+def test_the_share_of_random_actions_can_differ_per_environment_and_agent():
+    """random_eps (N, A): 0 keeps the noisy policy's action, 1 draws a random one; the
+    random stream is the same as with the config's share (runs without it are unchanged)."""
+    obs = np.random.default_rng(0).normal(size=(64, 2, 7))
+    agent = small_agent(random_eps=0.5, noise_std=0.0)
+    policy = agent.act(obs)
+    eps = np.zeros((64, 2))
+    eps[:32, 1] = 1.0                       # agent 1 in the first 32 envs: always random
+    a = agent.act(obs, np.random.default_rng(1), explore=True, random_eps=eps)
+    np.testing.assert_allclose(a[:, 0], policy[:, 0])
+    np.testing.assert_allclose(a[32:, 1], policy[32:, 1])
+    assert not np.isclose(a[:32, 1, :2], policy[:32, 1, :2]).any()
+    same = agent.act(obs, np.random.default_rng(1), explore=True, random_eps=np.full((64, 2), 0.5))
+    np.testing.assert_array_equal(same, agent.act(obs, np.random.default_rng(1), explore=True))

@@ -390,6 +390,38 @@ def test_far_action_l2_weighs_the_penalty_by_the_distance_to_the_box(tmp_path):
         curriculum_config(near_box_radius=0.0)
 
 
+def test_near_random_eps_sets_the_share_of_random_actions_near_the_box(tmp_path):
+    from dualarm.envs.baxter import observation_layout
+
+    config = curriculum_config(near_random_eps=0.0, near_box_radius=0.05, episodes=8,
+                               algo=DADDPGConfig(hidden=(16, 16), random_eps=0.3, batch_size=16,
+                                                 warmup_steps=50))
+    trainer = Trainer.start(config, tmp_path / "run", progress=False)
+    try:
+        rel = observation_layout(config.task_config().observes_joint_angles)["object_rel_pos"]
+        obs = np.zeros((2, 2, trainer.vec.obs_size))
+        obs[0, :, rel] = [0.03, 0.0, 0.0]                      # both near
+        obs[1, 0, rel] = [0.0, 0.0, -0.2]                      # left far, right at the box
+        np.testing.assert_allclose(trainer.random_eps(obs), [[0.0, 0.0], [0.3, 0.0]])
+        seen = []
+        act = trainer.agent.act
+        trainer.agent.act = lambda o, rng=None, explore=False, random_eps=None: \
+            seen.append(random_eps) or act(o, rng, explore, random_eps)
+        trainer.run()
+        explored = [e for e in seen if e is not None]
+        assert explored and all(e.shape == (4, 2) for e in explored)
+        assert any((e == 0.0).any() for e in explored) and any((e == 0.3).any() for e in explored)
+    finally:
+        trainer.close()
+    plain = Trainer.start(curriculum_config(episodes=8), tmp_path / "plain", progress=False)
+    try:
+        assert plain.random_eps(obs) is None
+    finally:
+        plain.close()
+    with pytest.raises(ValueError, match="near_random_eps must be"):
+        curriculum_config(near_random_eps=1.5)
+
+
 def test_curriculum_options_are_checked(tmp_path):
     with pytest.raises(ValueError, match="start_curriculum must be in"):
         TrainConfig(start_probs=(0.2, 0.2, 0.6), start_curriculum=1.5)

@@ -117,12 +117,13 @@ class DADDPG:
             * self.action_mask
 
     def act(self, obs: np.ndarray, rng: np.random.Generator | None = None,
-            explore: bool = False) -> np.ndarray:
+            explore: bool = False, random_eps: np.ndarray | None = None) -> np.ndarray:
         """Actions (N, A, U) in [-1, 1] for observations (N, A, O) of N environments.
 
         With ``explore``, noise is added and each agent's action is replaced by a uniform
         random one with probability ``random_eps`` (both need ``rng``; without
-        ``random_grip`` the grip command stays the noisy policy's).
+        ``random_grip`` the grip command stays the noisy policy's). ``random_eps`` (N, A),
+        if given, is that probability per environment and agent in place of the config's.
         """
         with torch.inference_mode():
             o = torch.as_tensor(np.asarray(obs, dtype=np.float32)).transpose(0, 1)
@@ -133,7 +134,8 @@ class DADDPG:
             random = rng.uniform(-1.0, 1.0, size=actions.shape)
             if not c.random_grip:
                 random = np.where(self._grip_columns, actions, random)
-            pick = rng.random(actions.shape[:2]) < c.random_eps
+            eps = c.random_eps if random_eps is None else random_eps
+            pick = rng.random(actions.shape[:2]) < eps
             actions = np.where(pick[..., None], random, actions)
             actions *= self.action_mask[:, 0].numpy()
         return actions

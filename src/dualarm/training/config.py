@@ -61,7 +61,12 @@ class TrainConfig:
             ``algo.action_l2`` applies within it. The penalty steadies the grasp and the
             carry, near the box; far from it, it holds the arm still at home
             (docs/learning-runs.md, rounds 7-8). None: ``algo.action_l2`` everywhere.
-        near_box_radius: metres; see ``far_action_l2``.
+        near_random_eps: ``algo.random_eps`` (the share of uniformly random exploring
+            actions) for an arm whose grip site is within ``near_box_radius`` of its box;
+            farther away ``algo.random_eps`` applies. Random steps of up to a full action
+            knock a closing grip off its box (docs/learning-runs.md, round 9). None:
+            ``algo.random_eps`` everywhere.
+        near_box_radius: metres; see ``far_action_l2`` and ``near_random_eps``.
         approach_starts: an arm that starts a training episode at reach begins a uniform
             fraction of the way from home to just above its box instead of at home (needs
             ``start_probs``): training starts that cover the approach to the box.
@@ -97,6 +102,7 @@ class TrainConfig:
     curriculum_probe: int = 0
     reach_action_l2: float | None = None
     far_action_l2: float | None = None
+    near_random_eps: float | None = None
     near_box_radius: float = 0.05
     approach_starts: bool = False
     reward_heads: bool = False
@@ -147,6 +153,8 @@ class TrainConfig:
                                  "give start_curriculum too")
         if self.far_action_l2 is not None and self.far_action_l2 < 0:
             raise InputError(f"far_action_l2 must be >= 0, got {self.far_action_l2}")
+        if self.near_random_eps is not None and not 0 <= self.near_random_eps <= 1:
+            raise InputError(f"near_random_eps must be in [0, 1], got {self.near_random_eps}")
         if self.near_box_radius <= 0:
             raise InputError(f"near_box_radius must be > 0, got {self.near_box_radius}")
         for name in ("start_curriculum", "approach_starts"):
@@ -163,7 +171,8 @@ class TrainConfig:
         PettingZoo environment has no scripted expert, start states, targets or reward terms)."""
         used = {"start_probs": self.uses_start_states, "her_share": self.her_share > 0,
                 "reward_heads": self.reward_heads, "demo_episodes": self.demo_episodes > 0,
-                "far_action_l2": self.far_action_l2 is not None}
+                "far_action_l2": self.far_action_l2 is not None,
+                "near_random_eps": self.near_random_eps is not None}
         return [name for name, on in used.items() if on]
 
     @property

@@ -125,9 +125,10 @@ class Trainer:
             relabeller = goals(task, task.observes_joint_angles)
             self.sampler = HindsightSampler(self.buffer, relabeller.achieved, relabeller.relabel,
                                             config.her_share)
-        # far_action_l2: each arm's box-minus-grip offset in its observation, (3,) columns
+        # far_action_l2, near_random_eps: each arm's box-minus-grip offset in its observation,
+        # (3,) columns
         self.rel_columns = None
-        if config.far_action_l2 is not None:
+        if config.far_action_l2 is not None or config.near_random_eps is not None:
             from dualarm.envs.baxter import observation_layout
             self.rel_columns = observation_layout(task.observes_joint_angles)["object_rel_pos"]
         # Demonstrations are recorded again on resume (the expert and the physics are
@@ -306,6 +307,17 @@ class Trainer:
         far = obs[..., self.rel_columns].norm(dim=-1) > self.config.near_box_radius
         return torch.where(far, self.config.far_action_l2, self.agent.action_l2)
 
+    def random_eps(self, obs: np.ndarray) -> np.ndarray | None:
+        """The share of random exploring actions per copy and arm, (n, A), from observations
+        (n, A, O): ``near_random_eps`` where the grip site is within ``near_box_radius`` m of
+        its box, ``algo.random_eps`` farther away; None (the config's everywhere) without
+        ``near_random_eps``."""
+        c = self.config
+        if c.near_random_eps is None:
+            return None
+        near = np.linalg.norm(obs[..., self.rel_columns], axis=-1) <= c.near_box_radius
+        return np.where(near, c.near_random_eps, c.algo.random_eps)
+
     def scheduled_action_l2(self) -> float:
         """The action penalty's weight for the next round: ``reach_action_l2`` while the
         curriculum's frontier is the normal start, else ``algo.action_l2``. A function of the
@@ -338,7 +350,7 @@ class Trainer:
             if self.env_steps < a.warmup_steps:
                 actions = self.rng.uniform(-1.0, 1.0, (v.num_envs, 2, v.act_size)) * mask
             else:
-                actions = agent.act(obs, self.rng, explore=True)
+                actions = agent.act(obs, self.rng, explore=True, random_eps=self.random_eps(obs))
             timing["act_s"] += time.perf_counter() - t
             return actions
 
@@ -424,7 +436,7 @@ class Trainer:
             if demo_rows:
                 demos = self.demos.sample(self.rng, demo_rows)
                 batch = {k: torch.cat([batch[k], demos[k]]) for k in batch}
-            if self.rel_columns is not None:
+            if self.config.far_action_l2 is not None:
                 batch["penalty_weight"] = self.penalty_weight(batch["obs"])
             try:
                 losses.append(self.agent.update(batch, demo_rows))
