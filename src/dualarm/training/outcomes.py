@@ -8,9 +8,10 @@ box never grasped in all but the first three):
 ``aligned``                its box at its target at the end (the arm's part of a success);
 ``held, not at target``    holding its box at the end, away from the target;
 ``dropped``                grasped its box at some step, not at the end;
-``slid out of the grip``   after the reach, the fingers closed on the box and lifted it, but
-                           it never counted as grasped (it slipped beyond the grasp tolerance);
-``closed, not lifted``     after the reach, the fingers closed on the box; it was never lifted;
+``slid out of the grip``   after the reach, the fingers closed within the grasp tolerance of
+                           the box and it rose, but it never counted as grasped (it slipped);
+``closed, not lifted``     after the reach, the fingers closed within the grasp tolerance of
+                           the box; it never rose by ``lift_height``;
 ``closed off the box``     after the reach, the fingers first closed farther than the grasp
                            tolerance from the box (a grip that drifted off while closing);
 ``reached, not closed``    came within reach of its box, never closed the fingers;
@@ -18,7 +19,9 @@ box never grasped in all but the first three):
 ``still``                  never within reach, its mean motion command under ``still_action``.
 
 A learner that fails shows here which link fails and how: an arm that keeps still at home,
-a grip that drifts off the box while the fingers close, a grip too weak to lift.
+a grip that drifts off the box while the fingers close, a grip too weak to lift. "Closed" is
+the task's own test (finger gap at most the box width plus ``grasp_gap_margin``), so fingers
+closed above the box, with nothing between them, count as closed too.
 """
 
 from __future__ import annotations
