@@ -418,8 +418,19 @@ def test_near_random_eps_sets_the_share_of_random_actions_near_the_box(tmp_path)
         assert plain.random_eps(obs) is None
     finally:
         plain.close()
+    narrow = Trainer.start(curriculum_config(near_random_eps=0.0, calm_radius=0.02, episodes=8,
+                                             algo=config.algo),
+                           tmp_path / "narrow", progress=False)
+    try:   # 3 cm from the box: calm within 5 cm, exploring within a calm radius of 2 cm
+        np.testing.assert_allclose(narrow.random_eps(obs), [[0.3, 0.3], [0.3, 0.0]])
+    finally:
+        narrow.close()
     with pytest.raises(ValueError, match="near_random_eps must be"):
         curriculum_config(near_random_eps=1.5)
+    with pytest.raises(ValueError, match="calm_radius must be"):
+        curriculum_config(near_random_eps=0.0, calm_radius=0.0)
+    with pytest.raises(ValueError, match="set near_random_eps too"):
+        curriculum_config(calm_radius=0.02)
 
 
 def test_curriculum_options_are_checked(tmp_path):

@@ -66,6 +66,9 @@ class TrainConfig:
             farther away ``algo.random_eps`` applies. Random steps of up to a full action
             knock a closing grip off its box (docs/learning-runs.md, round 9). None:
             ``algo.random_eps`` everywhere.
+        calm_radius: metres; the radius within which ``near_random_eps`` applies, so that
+            the last centimetres of the approach can keep exploring while the grasp is
+            calm. None: ``near_box_radius``.
         near_box_radius: metres; see ``far_action_l2`` and ``near_random_eps``.
         approach_starts: an arm that starts a training episode at reach begins a uniform
             fraction of the way from home to just above its box instead of at home (needs
@@ -103,6 +106,7 @@ class TrainConfig:
     reach_action_l2: float | None = None
     far_action_l2: float | None = None
     near_random_eps: float | None = None
+    calm_radius: float | None = None
     near_box_radius: float = 0.05
     approach_starts: bool = False
     reward_heads: bool = False
@@ -155,6 +159,10 @@ class TrainConfig:
             raise InputError(f"far_action_l2 must be >= 0, got {self.far_action_l2}")
         if self.near_random_eps is not None and not 0 <= self.near_random_eps <= 1:
             raise InputError(f"near_random_eps must be in [0, 1], got {self.near_random_eps}")
+        if self.calm_radius is not None and self.calm_radius <= 0:
+            raise InputError(f"calm_radius must be > 0, got {self.calm_radius}")
+        if self.calm_radius is not None and self.near_random_eps is None:
+            raise InputError("calm_radius is the radius of near_random_eps: set near_random_eps too")
         if self.near_box_radius <= 0:
             raise InputError(f"near_box_radius must be > 0, got {self.near_box_radius}")
         for name in ("start_curriculum", "approach_starts"):

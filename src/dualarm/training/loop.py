@@ -309,13 +309,14 @@ class Trainer:
 
     def random_eps(self, obs: np.ndarray) -> np.ndarray | None:
         """The share of random exploring actions per copy and arm, (n, A), from observations
-        (n, A, O): ``near_random_eps`` where the grip site is within ``near_box_radius`` m of
-        its box, ``algo.random_eps`` farther away; None (the config's everywhere) without
-        ``near_random_eps``."""
+        (n, A, O): ``near_random_eps`` where the grip site is within ``calm_radius`` m of
+        its box (``near_box_radius`` when unset), ``algo.random_eps`` farther away; None
+        (the config's everywhere) without ``near_random_eps``."""
         c = self.config
         if c.near_random_eps is None:
             return None
-        near = np.linalg.norm(obs[..., self.rel_columns], axis=-1) <= c.near_box_radius
+        radius = c.near_box_radius if c.calm_radius is None else c.calm_radius
+        near = np.linalg.norm(obs[..., self.rel_columns], axis=-1) <= radius
         return np.where(near, c.near_random_eps, c.algo.random_eps)
 
     def scheduled_action_l2(self) -> float:
