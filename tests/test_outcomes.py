@@ -52,6 +52,10 @@ def test_an_arm_that_moves_away_has_moved_without_reaching():
     only(outcomes(lambda o, t: command(dz=1.0, grip=-1.0)), "moved, not reached")
 
 
+def test_an_arm_that_closes_its_hand_on_the_way_has_closed_without_reaching():
+    only(outcomes(lambda o, t: command(dz=1.0, grip=1.0)), "closed, not reached")
+
+
 def test_open_fingers_at_the_box_are_reached_not_closed():
     only(outcomes(lambda o, t: command(grip=-1.0), start="grasp"), "reached, not closed")
 

@@ -15,7 +15,9 @@ box never grasped in all but the first three):
 ``closed off the box``     after the reach, the fingers first closed farther than the grasp
                            tolerance from the box (a grip that drifted off while closing);
 ``reached, not closed``    came within reach of its box, never closed the fingers;
-``moved, not reached``     never within reach, moving;
+``closed, not reached``    never within reach, moving, and the fingers closed on the way (with
+                           nothing between them: a hand closed early cannot take the box);
+``moved, not reached``     never within reach, moving, the fingers never closed;
 ``still``                  never within reach, its mean motion command under ``still_action``.
 
 A learner that fails shows here which link fails and how: an arm that keeps still at home,
@@ -39,7 +41,7 @@ from dualarm.training.vector import EVAL_SEED_BASE, VectorEnv
 #: Outcome classes, from the end of the task back to its start.
 OUTCOMES = ("aligned", "held, not at target", "dropped", "slid out of the grip",
             "closed, not lifted", "closed off the box", "reached, not closed",
-            "moved, not reached", "still")
+            "closed, not reached", "moved, not reached", "still")
 
 
 @dataclass
@@ -84,6 +86,7 @@ class _ArmTrace:
         self.closed_at = np.full(shape, np.nan)     # grip-to-box distance (m) when the fingers
         #                                             first count as closed after the reach
         self.lifted_closed = np.zeros(shape, dtype=bool)
+        self.closed_unreached = np.zeros(shape, dtype=bool)   # fingers closed before any reach
         self.motion = np.zeros(shape)               # summed mean |motion command|
         self.steps = np.zeros(n, dtype=np.int64)
         self.box_rest_z = np.full(shape, np.nan)    # the box's height at the first step, m
@@ -104,7 +107,10 @@ def _classify(t: _ArmTrace, i: int, last_obs: np.ndarray, last_subtask: np.ndarr
         elif t.grasped_ever[i, arm]:
             name = "dropped"
         elif not t.reached[i, arm]:
-            name = "still" if t.motion[i, arm] / max(t.steps[i], 1) < still_action else "moved, not reached"
+            if t.motion[i, arm] / max(t.steps[i], 1) < still_action:
+                name = "still"
+            else:
+                name = "closed, not reached" if t.closed_unreached[i, arm] else "moved, not reached"
         elif np.isnan(t.closed_at[i, arm]):
             name = "reached, not closed"
         elif t.closed_at[i, arm] >= task.grasp_tolerance:
@@ -152,6 +158,7 @@ def link_outcomes(act, vec: VectorEnv, task: TaskConfig, episodes: int = 32,
         rise = o[..., layout["object_pos"]][..., 2] - trace.box_rest_z[live]
         sub = step.subtask[live]
         trace.reached[live] |= (sub >= 1) | (dist < task.reach_threshold)
+        trace.closed_unreached[live] |= closed & ~trace.reached[live]
         trace.grasped_ever[live] |= sub == 2
         newly = closed & trace.reached[live] & np.isnan(trace.closed_at[live])
         trace.closed_at[live] = np.where(newly, dist, trace.closed_at[live])
