@@ -187,6 +187,19 @@ def test_a_penalty_weight_per_sample_replaces_action_l2():
         assert not torch.allclose(p_free[0], p_plain[0])
 
 
+def test_a_shaping_term_is_a_reward_in_the_learners_units():
+    """shaping (B, A) adds to the scaled reward: the same update as its reward / reward_scale."""
+    batch = random_batch()
+    shaping = torch.randn(8, 2, generator=torch.Generator().manual_seed(1))
+    shaped, moved, plain = (small_agent(reward_scale=0.5) for _ in range(3))
+    out = shaped.update({**batch, "shaping": shaping})
+    ref = moved.update({**batch, "rew": batch["rew"] + shaping / 0.5})
+    assert out["critic_loss"] == pytest.approx(ref["critic_loss"], rel=1e-5)
+    assert plain.update(batch)["critic_loss"] != pytest.approx(out["critic_loss"], rel=1e-3)
+    for p_shaped, p_moved in zip(shaped.critic.parameters(), moved.critic.parameters()):
+        torch.testing.assert_close(p_shaped, p_moved)
+
+
 def test_layer_norm_critics_ignore_the_scale_of_their_hidden_pre_activations():
     net = StackedMLP(2, 4, 1, (8, 8), generator=torch.Generator().manual_seed(0), layer_norm=True)
     plain = StackedMLP(2, 4, 1, (8, 8), generator=torch.Generator().manual_seed(0))

@@ -433,6 +433,37 @@ def test_near_random_eps_sets_the_share_of_random_actions_near_the_box(tmp_path)
         curriculum_config(calm_radius=0.02)
 
 
+def test_approach_shaping_is_potential_based_on_the_grip_to_box_distance(tmp_path):
+    """gamma * phi(s') * (1 - done) - phi(s) with phi = -k * distance, per arm; in the batches
+    the learner updates on."""
+    from dualarm.envs.baxter import observation_layout
+
+    config = curriculum_config(approach_shaping=2.0, episodes=8)
+    trainer = Trainer.start(config, tmp_path / "run", progress=False)
+    try:
+        rel = observation_layout(config.task_config().observes_joint_angles)["object_rel_pos"]
+        obs = torch.zeros(2, 2, trainer.vec.obs_size)
+        nxt = torch.zeros(2, 2, trainer.vec.obs_size)
+        obs[:, 0, rel] = torch.tensor([0.0, 0.3, 0.4])          # left 0.5 m from its box
+        nxt[:, 0, rel] = torch.tensor([0.0, 0.0, 0.1])          # ... then 0.1 m
+        obs[:, 1, rel.start] = 0.2                              # right stays 0.2 m away
+        nxt[:, 1, rel.start] = 0.2
+        done = torch.tensor([0.0, 1.0])
+        g = config.algo.gamma
+        shaping = trainer.approach_shaping({"obs": obs, "next_obs": nxt, "done": done})
+        torch.testing.assert_close(shaping, torch.tensor(
+            [[g * -0.2 + 1.0, g * -0.4 + 0.4], [1.0, 0.4]]))
+        seen = []
+        update = trainer.agent.update
+        trainer.agent.update = lambda batch, demo_rows=0: seen.append(batch) or update(batch, demo_rows)
+        trainer.run()
+        assert seen and all(b["shaping"].shape == (config.algo.batch_size, 2) for b in seen)
+    finally:
+        trainer.close()
+    with pytest.raises(ValueError, match="approach_shaping must be"):
+        curriculum_config(approach_shaping=-1.0)
+
+
 def test_curriculum_options_are_checked(tmp_path):
     with pytest.raises(ValueError, match="start_curriculum must be in"):
         TrainConfig(start_probs=(0.2, 0.2, 0.6), start_curriculum=1.5)

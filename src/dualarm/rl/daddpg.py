@@ -213,7 +213,9 @@ class DADDPG:
         Args:
             batch: obs and next_obs (B, A, O), act (B, A, U), rew (B, A) or, with reward
                 heads, (B, A, H), and done (B,); optionally penalty_weight (B, A), the action
-                penalty's weight per sample and agent in place of ``action_l2``.
+                penalty's weight per sample and agent in place of ``action_l2``; optionally
+                shaping (B, A), a term added to the first head's scaled reward (learner units,
+                for example potential-based shaping).
             demo_rows: the last ``demo_rows`` rows of the batch are demonstrations (see
                 :meth:`actor_loss`).
 
@@ -229,6 +231,9 @@ class DADDPG:
         a_taken = batch["act"].transpose(0, 1)                     # (A, B, U)
         rew = batch["rew"] if batch["rew"].dim() == 3 else batch["rew"].unsqueeze(-1)
         r = rew.transpose(0, 1) * self._scales                     # (A, B, H)
+        if "shaping" in batch:
+            r = r.clone()
+            r[..., 0] += batch["shaping"].transpose(0, 1)
         not_done = (1.0 - batch["done"]).view(1, -1, 1)            # (1, B, 1)
 
         with torch.no_grad():

@@ -78,6 +78,13 @@ class TrainConfig:
             replay, Andrychowicz et al. 2017, "future" goals): the targets by where the
             boxes went, or, in the reach task (``task.success_at: reach``), the boxes by
             where the grip sites went. 0 turns it off.
+        approach_shaping: k, in the learner's reward units per metre: each arm's learner
+            reward gains the potential-based term gamma * phi(s') - phi(s) with phi(s) = -k *
+            (the distance from its grip site to its box), phi = 0 after a success (Ng, Harada
+            and Russell 1999). A potential-based term leaves the optimal policies of the
+            paper's reward unchanged and the logged returns are the paper's; it gives the
+            critic a gradient towards the box where the task's value is still out of sight
+            (the reach from home, docs/learning-runs.md, round 10). 0 turns it off.
         reward_heads: split each agent's reward into three components, each learned by its
             own critic head at its own scale (``DADDPG``'s ``head_scales``): the per-step
             terms (distance + guide) times ``algo.reward_scale``, the goal bonuses divided
@@ -111,6 +118,7 @@ class TrainConfig:
     approach_starts: bool = False
     reward_heads: bool = False
     her_share: float = 0.0
+    approach_shaping: float = 0.0
     demo_episodes: int = 0
     algo: DADDPGConfig = field(default_factory=DADDPGConfig)
 
@@ -169,6 +177,8 @@ class TrainConfig:
             if getattr(self, name) and not self.uses_start_states:
                 raise InputError(f"{name} moves the start states: give start_probs other "
                                  "than (1, 0, 0), for example [0.2, 0.2, 0.6]")
+        if self.approach_shaping < 0:
+            raise InputError(f"approach_shaping must be >= 0, got {self.approach_shaping}")
         if not 0 <= self.her_share <= 1:
             raise InputError(f"her_share must be in [0, 1], got {self.her_share}")
         if self.checkpoint_minutes <= 0:
@@ -180,7 +190,8 @@ class TrainConfig:
         used = {"start_probs": self.uses_start_states, "her_share": self.her_share > 0,
                 "reward_heads": self.reward_heads, "demo_episodes": self.demo_episodes > 0,
                 "far_action_l2": self.far_action_l2 is not None,
-                "near_random_eps": self.near_random_eps is not None}
+                "near_random_eps": self.near_random_eps is not None,
+                "approach_shaping": self.approach_shaping > 0}
         return [name for name, on in used.items() if on]
 
     @property

@@ -128,7 +128,8 @@ class Trainer:
         # far_action_l2, near_random_eps: each arm's box-minus-grip offset in its observation,
         # (3,) columns
         self.rel_columns = None
-        if config.far_action_l2 is not None or config.near_random_eps is not None:
+        if config.far_action_l2 is not None or config.near_random_eps is not None \
+                or config.approach_shaping > 0:
             from dualarm.envs.baxter import observation_layout
             self.rel_columns = observation_layout(task.observes_joint_angles)["object_rel_pos"]
         # Demonstrations are recorded again on resume (the expert and the physics are
@@ -307,6 +308,16 @@ class Trainer:
         far = obs[..., self.rel_columns].norm(dim=-1) > self.config.near_box_radius
         return torch.where(far, self.config.far_action_l2, self.agent.action_l2)
 
+    def approach_shaping(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The potential-based shaping term per sample and arm, (B, A), in the learner's
+        reward units: gamma * phi(s') * (1 - done) - phi(s), phi = -``approach_shaping`` x the
+        grip-to-box distance (m) in the raw observations (B, A, O) (a success ends the
+        episode with phi = 0, so the shaped return differs from the paper's by -phi(s0) only)."""
+        k, gamma = self.config.approach_shaping, self.config.algo.gamma
+        phi = -k * batch["obs"][..., self.rel_columns].norm(dim=-1)            # (B, A)
+        phi2 = -k * batch["next_obs"][..., self.rel_columns].norm(dim=-1)
+        return gamma * (1.0 - batch["done"]).unsqueeze(-1) * phi2 - phi
+
     def random_eps(self, obs: np.ndarray) -> np.ndarray | None:
         """The share of random exploring actions per copy and arm, (n, A), from observations
         (n, A, O): ``near_random_eps`` where the grip site is within ``calm_radius`` m of
@@ -439,6 +450,8 @@ class Trainer:
                 batch = {k: torch.cat([batch[k], demos[k]]) for k in batch}
             if self.config.far_action_l2 is not None:
                 batch["penalty_weight"] = self.penalty_weight(batch["obs"])
+            if self.config.approach_shaping > 0:
+                batch["shaping"] = self.approach_shaping(batch)
             try:
                 losses.append(self.agent.update(batch, demo_rows))
             except NonFiniteLoss as exc:
