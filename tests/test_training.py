@@ -302,6 +302,16 @@ def curriculum_config(**changes):
     return TrainConfig(**base)
 
 
+def box_offset_obs(config, obs_size, offsets) -> np.ndarray:
+    """Observations (B, A, O), zero but for each arm's box-minus-grip offset, offsets (B, A, 3) m."""
+    from dualarm.envs.baxter import observation_layout
+
+    rel = observation_layout(config.task_config().observes_joint_angles)["object_rel_pos"]
+    obs = np.zeros((*np.shape(offsets)[:2], obs_size))
+    obs[..., rel] = offsets
+    return obs
+
+
 @pytest.mark.parametrize("heads,moving,probe", [(False, 0.0, 0), (True, 0.0, 0), (False, 0.5, 0),
                                                 (False, 0.5, 4)])
 def test_run_with_later_starts_and_hindsight_targets_resumes_exactly(tmp_path, heads, moving, probe):
@@ -362,18 +372,15 @@ def test_reach_action_l2_applies_while_the_frontier_is_the_normal_start(tmp_path
 
 
 def test_far_action_l2_weighs_the_penalty_by_the_distance_to_the_box(tmp_path):
-    from dualarm.envs.baxter import observation_layout
-
     config = curriculum_config(far_action_l2=0.001, near_box_radius=0.05, episodes=8,
                                algo=DADDPGConfig(hidden=(16, 16), action_l2=0.5, batch_size=16,
                                                  warmup_steps=50))
     trainer = Trainer.start(config, tmp_path / "run", progress=False)
     try:
-        rel = observation_layout(config.task_config().observes_joint_angles)["object_rel_pos"]
-        obs = torch.zeros(3, 2, trainer.vec.obs_size)
-        obs[0, :, rel] = torch.tensor([0.03, 0.0, 0.0])         # 3 cm from the box: near
-        obs[1, :, rel] = torch.tensor([0.0, 0.04, 0.04])        # 5.7 cm: far
-        obs[2, 0, rel] = torch.tensor([0.0, 0.0, -0.2])         # left far, right at the box
+        obs = torch.as_tensor(box_offset_obs(config, trainer.vec.obs_size, [
+            [[0.03, 0.0, 0.0]] * 2,                              # 3 cm from the box: near
+            [[0.0, 0.04, 0.04]] * 2,                             # 5.7 cm: far
+            [[0.0, 0.0, -0.2], [0.0, 0.0, 0.0]]]), dtype=torch.float32)  # left far, right at the box
         w = trainer.penalty_weight(obs)
         assert w.shape == (3, 2)
         torch.testing.assert_close(w, torch.tensor([[0.5, 0.5], [0.001, 0.001], [0.001, 0.5]]))
@@ -391,17 +398,14 @@ def test_far_action_l2_weighs_the_penalty_by_the_distance_to_the_box(tmp_path):
 
 
 def test_near_random_eps_sets_the_share_of_random_actions_near_the_box(tmp_path):
-    from dualarm.envs.baxter import observation_layout
-
     config = curriculum_config(near_random_eps=0.0, near_box_radius=0.05, episodes=8,
                                algo=DADDPGConfig(hidden=(16, 16), random_eps=0.3, batch_size=16,
                                                  warmup_steps=50))
     trainer = Trainer.start(config, tmp_path / "run", progress=False)
     try:
-        rel = observation_layout(config.task_config().observes_joint_angles)["object_rel_pos"]
-        obs = np.zeros((2, 2, trainer.vec.obs_size))
-        obs[0, :, rel] = [0.03, 0.0, 0.0]                      # both near
-        obs[1, 0, rel] = [0.0, 0.0, -0.2]                      # left far, right at the box
+        obs = box_offset_obs(config, trainer.vec.obs_size, [
+            [[0.03, 0.0, 0.0]] * 2,                              # both near
+            [[0.0, 0.0, -0.2], [0.0, 0.0, 0.0]]])                # left far, right at the box
         np.testing.assert_allclose(trainer.random_eps(obs), [[0.0, 0.0], [0.3, 0.0]])
         seen = []
         act = trainer.agent.act
@@ -436,18 +440,14 @@ def test_near_random_eps_sets_the_share_of_random_actions_near_the_box(tmp_path)
 def test_approach_shaping_is_potential_based_on_the_grip_to_box_distance(tmp_path):
     """gamma * phi(s') * (1 - done) - phi(s) with phi = -k * distance, per arm; in the batches
     the learner updates on."""
-    from dualarm.envs.baxter import observation_layout
-
     config = curriculum_config(approach_shaping=2.0, episodes=8)
     trainer = Trainer.start(config, tmp_path / "run", progress=False)
     try:
-        rel = observation_layout(config.task_config().observes_joint_angles)["object_rel_pos"]
-        obs = torch.zeros(2, 2, trainer.vec.obs_size)
-        nxt = torch.zeros(2, 2, trainer.vec.obs_size)
-        obs[:, 0, rel] = torch.tensor([0.0, 0.3, 0.4])          # left 0.5 m from its box
-        nxt[:, 0, rel] = torch.tensor([0.0, 0.0, 0.1])          # ... then 0.1 m
-        obs[:, 1, rel.start] = 0.2                              # right stays 0.2 m away
-        nxt[:, 1, rel.start] = 0.2
+        # left 0.5 m from its box, then 0.1 m; right stays 0.2 m away
+        obs, nxt = (torch.as_tensor(box_offset_obs(config, trainer.vec.obs_size,
+                                                   [[left, [0.2, 0.0, 0.0]]] * 2),
+                                    dtype=torch.float32)
+                    for left in ([0.0, 0.3, 0.4], [0.0, 0.0, 0.1]))
         done = torch.tensor([0.0, 1.0])
         g = config.algo.gamma
         shaping = trainer.approach_shaping({"obs": obs, "next_obs": nxt, "done": done})

@@ -16,9 +16,9 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     from dualarm.training.policy import load_policy
 
     config, agent, info = load_policy(args.run, args.checkpoint)
-    if config.task_config().control != "cartesian":
-        raise InputError(f"{args.run}: dualarm diagnose reads cartesian-control runs only")
     task = config.task_config()
+    if task.control != "cartesian":
+        raise InputError(f"{args.run}: dualarm diagnose reads cartesian-control runs only")
     constraints = config.load_constraints()
     print(f"{info['checkpoint']} (after {info['episodes']} training episodes), "
           f"{args.episodes} episodes per start, deterministic policy:")

@@ -16,7 +16,8 @@ from dualarm.errors import DualarmError
 COMMANDS = (quickstart.add_quickstart_command, mocap.add_mocap_command, env.add_env_command,
             demos.add_demos_command, constraints.add_constraints_command, train.add_train_command,
             evaluate.add_eval_command, diagnose.add_diagnose_command, play.add_play_command,
-            export.add_export_command, report.add_report_command, compare.add_compare_command, pipeline.add_pipeline_command)
+            export.add_export_command, report.add_report_command, compare.add_compare_command,
+            pipeline.add_pipeline_command)
 
 
 def build_parser() -> argparse.ArgumentParser:

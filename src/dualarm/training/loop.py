@@ -125,8 +125,8 @@ class Trainer:
             relabeller = goals(task, task.observes_joint_angles)
             self.sampler = HindsightSampler(self.buffer, relabeller.achieved, relabeller.relabel,
                                             config.her_share)
-        # far_action_l2, near_random_eps: each arm's box-minus-grip offset in its observation,
-        # (3,) columns
+        # far_action_l2, near_random_eps, approach_shaping: each arm's box-minus-grip offset
+        # in its observation, (3,) columns
         self.rel_columns = None
         if config.far_action_l2 is not None or config.near_random_eps is not None \
                 or config.approach_shaping > 0:
@@ -301,11 +301,15 @@ class Trainer:
         return TrainResult(self.paths.root, self.episodes, self.env_steps, self.wall_time_s,
                            self.last_eval)
 
+    def box_distance(self, obs: torch.Tensor) -> torch.Tensor:
+        """Each arm's grip-to-box distance (m), (B, A), from raw observations (B, A, O)."""
+        return obs[..., self.rel_columns].norm(dim=-1)
+
     def penalty_weight(self, obs: torch.Tensor) -> torch.Tensor:
         """The action penalty's weight per sample and arm, (B, A), from raw observations
         (B, A, O): ``far_action_l2`` where the grip site is more than ``near_box_radius`` m
         from its box, the learner's ``action_l2`` within it."""
-        far = obs[..., self.rel_columns].norm(dim=-1) > self.config.near_box_radius
+        far = self.box_distance(obs) > self.config.near_box_radius
         return torch.where(far, self.config.far_action_l2, self.agent.action_l2)
 
     def approach_shaping(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
@@ -314,8 +318,8 @@ class Trainer:
         grip-to-box distance (m) in the raw observations (B, A, O) (a success ends the
         episode with phi = 0, so the shaped return differs from the paper's by -phi(s0) only)."""
         k, gamma = self.config.approach_shaping, self.config.algo.gamma
-        phi = -k * batch["obs"][..., self.rel_columns].norm(dim=-1)            # (B, A)
-        phi2 = -k * batch["next_obs"][..., self.rel_columns].norm(dim=-1)
+        phi = -k * self.box_distance(batch["obs"])                  # (B, A)
+        phi2 = -k * self.box_distance(batch["next_obs"])
         return gamma * (1.0 - batch["done"]).unsqueeze(-1) * phi2 - phi
 
     def random_eps(self, obs: np.ndarray) -> np.ndarray | None:
