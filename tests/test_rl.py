@@ -7,7 +7,7 @@ import torch
 from dualarm.rl import DADDPG, DADDPGConfig
 from dualarm.rl.daddpg import NonFiniteLoss
 from dualarm.rl.networks import StackedMLP
-from dualarm.rl.noise import GaussianNoise
+from dualarm.rl.noise import GaussianNoise, HeldGrip
 from dualarm.rl.normalizer import RunningNormalizer
 from dualarm.rl.replay import ReplayBuffer
 
@@ -420,3 +420,52 @@ def test_the_share_of_random_actions_can_differ_per_environment_and_agent():
     assert not np.isclose(a[:32, 1, :2], policy[:32, 1, :2]).any()
     same = agent.act(obs, np.random.default_rng(1), explore=True, random_eps=np.full((64, 2), 0.5))
     np.testing.assert_array_equal(same, agent.act(obs, np.random.default_rng(1), explore=True))
+
+
+def test_a_held_grip_keeps_one_random_command_for_its_whole_duration():
+    """HeldGrip: a hold replaces only the grip column with one value in [-1, 1] for n steps,
+    n uniform on 1..max_steps (every length seen, none longer); reset drops the holds."""
+    rng = np.random.default_rng(0)
+    hold = HeldGrip(eps=1.0, max_steps=4)
+    grips = np.zeros((2, 3), dtype=bool)
+    grips[0, 1] = grips[1, 2] = True
+    policy = np.full((500, 2, 3), 0.5)
+    first = hold.apply(rng, policy, grips)
+    np.testing.assert_array_equal(first[~np.broadcast_to(grips, first.shape)], 0.5)
+    assert np.all(np.abs(first[:, 0, 1]) <= 1) and len(np.unique(first[:, 0, 1])) == 500
+    lengths, value = np.ones(500, dtype=int), first[:, 0, 1]
+    running = np.ones(500, dtype=bool)
+    for _ in range(6):                       # no new holds: each runs out after its n steps
+        out = hold.apply(rng, policy, grips, eps=np.zeros((500, 2)))
+        still = running & (out[:, 0, 1] == value)
+        lengths += still
+        running = still
+    assert set(lengths) == {1, 2, 3, 4}
+    assert np.all(out[:, 0, 1] == 0.5)
+    hold.apply(rng, policy, grips)
+    hold.reset(np.arange(500) < 250)
+    after = hold.apply(rng, policy, grips, eps=np.zeros((500, 2)))
+    np.testing.assert_array_equal(after[:250], policy[:250])
+
+
+def test_exploring_actions_hold_the_grip_with_grip_hold_eps():
+    """With grip_hold_eps the exploring grip repeats from step to step while the motion
+    components keep their per-step noise; hold_eps (N, A) of 0 keeps an agent's grip its own;
+    start_episodes ends the holds."""
+    obs = np.random.default_rng(0).normal(size=(64, 2, 7))
+    agent = small_agent(grip_hold_eps=1.0, grip_hold_steps=50, noise_std=0.1)
+    rng = np.random.default_rng(1)
+    a = agent.act(obs, rng, explore=True)
+    on = agent.grip_hold.left > 0                   # (64, 2): holds with steps left (n > 1)
+    assert on.mean() > 0.9
+    b = agent.act(obs, rng, explore=True)
+    np.testing.assert_array_equal(a[on[:, 1], 1, 2], b[on[:, 1], 1, 2])   # agent 1's grip held
+    np.testing.assert_array_equal(a[on[:, 0], 0, 1], b[on[:, 0], 0, 1])   # agent 0's (2nd of 2)
+    assert not np.allclose(a[:, :, 0], b[:, :, 0])                       # motion: fresh noise
+    agent.start_episodes(np.ones(64, dtype=bool))
+    policy = agent.act(obs)
+    eps = np.zeros((64, 2))
+    eps[:, 1] = 1.0
+    c = agent.act(obs, rng, explore=True, hold_eps=eps)
+    assert np.abs(c[:, 0, 1] - policy[:, 0, 1]).max() < 0.6               # agent 0: noise only
+    assert not np.isin(c[:, 1, 2], a[:, 1, 2]).any()                      # agent 1: new holds

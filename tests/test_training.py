@@ -409,8 +409,8 @@ def test_near_random_eps_sets_the_share_of_random_actions_near_the_box(tmp_path)
         np.testing.assert_allclose(trainer.random_eps(obs), [[0.0, 0.0], [0.3, 0.0]])
         seen = []
         act = trainer.agent.act
-        trainer.agent.act = lambda o, rng=None, explore=False, random_eps=None: \
-            seen.append(random_eps) or act(o, rng, explore, random_eps)
+        trainer.agent.act = lambda o, rng=None, explore=False, random_eps=None, **kw: \
+            seen.append(random_eps) or act(o, rng, explore, random_eps, **kw)
         trainer.run()
         explored = [e for e in seen if e is not None]
         assert explored and all(e.shape == (4, 2) for e in explored)
@@ -435,6 +435,37 @@ def test_near_random_eps_sets_the_share_of_random_actions_near_the_box(tmp_path)
         curriculum_config(near_random_eps=0.0, calm_radius=0.0)
     with pytest.raises(ValueError, match="set near_random_eps too"):
         curriculum_config(calm_radius=0.02)
+
+
+def test_grip_holds_start_only_away_from_the_box(tmp_path):
+    """algo.grip_hold_eps applies farther than near_box_radius from the box and is 0 nearer
+    (no hold opens a hand at its box); the loop passes it to every exploring step."""
+    config = curriculum_config(near_box_radius=0.05, episodes=8,
+                               algo=DADDPGConfig(hidden=(16, 16), grip_hold_eps=0.2, batch_size=16,
+                                                 warmup_steps=50))
+    trainer = Trainer.start(config, tmp_path / "run", progress=False)
+    try:
+        obs = box_offset_obs(config, trainer.vec.obs_size, [
+            [[0.03, 0.0, 0.0]] * 2, [[0.0, 0.0, -0.2], [0.0, 0.0, 0.0]]])
+        np.testing.assert_allclose(trainer.hold_eps(obs), [[0.0, 0.0], [0.2, 0.0]])
+        seen = []
+        act = trainer.agent.act
+        trainer.agent.act = lambda o, rng=None, explore=False, hold_eps=None, **kw: \
+            (explore and seen.append(hold_eps)) or act(o, rng, explore, hold_eps=hold_eps, **kw)
+        trainer.run()
+        assert seen and all(e is not None and e.shape == (4, 2) for e in seen)
+        assert all(set(np.unique(e)) <= {0.0, 0.2} for e in seen)
+    finally:
+        trainer.close()
+    plain = Trainer.start(curriculum_config(episodes=8), tmp_path / "plain", progress=False)
+    try:
+        assert plain.hold_eps(obs) is None
+    finally:
+        plain.close()
+    with pytest.raises(ValueError, match="grip_hold_eps"):
+        DADDPGConfig(grip_hold_eps=1.5)
+    with pytest.raises(ValueError, match="grip_hold_steps"):
+        DADDPGConfig(grip_hold_steps=0)
 
 
 def test_approach_shaping_is_potential_based_on_the_grip_to_box_distance(tmp_path):

@@ -68,6 +68,12 @@ class DADDPGConfig:
     """Random actions (``random_eps``) replace the grip command too. False keeps the policy's
     (noisy) grip command in a random step, so that exploring the motion does not open a hand
     that holds its box (the grip is each agent's last action component)."""
+    grip_hold_eps: float = 0.0
+    """Probability per step and agent of starting to hold a random grip command for several
+    steps (``rl.noise.HeldGrip``, epsilon-z-greedy on the grip; 0 = off): explores an open
+    hand through an approach that per-step noise cannot (docs/learning-runs.md, round 11)."""
+    grip_hold_steps: int = 8
+    """The longest hold of ``grip_hold_eps`` in steps; durations are uniform on 1..this."""
     action_l2: float = 0.1
     """Weight of the mean squared action in the actor loss (Plappert: 1.0, made for returns of
     -50..0; with this task's distance rewards 1.0 kept the arms nearly still)."""
@@ -112,6 +118,7 @@ class DADDPGConfig:
             "batch_size": self.batch_size >= 1, "gamma": 0 <= self.gamma < 1,
             "tau": 0 < self.tau <= 1, "buffer_size": self.buffer_size >= self.batch_size,
             "noise_std": self.noise_std >= 0, "random_eps": 0 <= self.random_eps <= 1,
+            "grip_hold_eps": 0 <= self.grip_hold_eps <= 1, "grip_hold_steps": self.grip_hold_steps >= 1,
             "action_l2": self.action_l2 >= 0, "obs_clip": self.obs_clip > 0,
             "grad_clip": self.grad_clip >= 0, "reward_scale": self.reward_scale > 0,
             "q_clip": self.q_clip >= 0, "target_noise": self.target_noise >= 0, "updates_per_step": self.updates_per_step >= 0,

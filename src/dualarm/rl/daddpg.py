@@ -25,7 +25,7 @@ import torch
 
 from dualarm.rl.config import DADDPGConfig
 from dualarm.rl.networks import StackedMLP
-from dualarm.rl.noise import GaussianNoise
+from dualarm.rl.noise import GaussianNoise, HeldGrip
 from dualarm.rl.normalizer import RunningNormalizer
 
 
@@ -96,6 +96,7 @@ class DADDPG:
         # the penalty's weight now: config.action_l2, unless the training loop schedules it
         self.action_l2 = c.action_l2
         self.noise = GaussianNoise(c.noise_std)
+        self.grip_hold = HeldGrip(c.grip_hold_eps, c.grip_hold_steps)
         # target smoothing noise draws from the learner's own stream, not torch's global one
         self.torch_rng = torch.Generator().manual_seed(seed + 1)
         self.updates = 0
@@ -116,14 +117,23 @@ class DADDPG:
         return self.actor(self.normalizer.normalize(obs.transpose(0, 1)).transpose(0, 1)) \
             * self.action_mask
 
+    def start_episodes(self, envs: np.ndarray) -> None:
+        """New episodes begin in the environments of the boolean mask (N,): the exploration
+        that spans steps (held grips) starts afresh there."""
+        self.noise.reset(envs)
+        self.grip_hold.reset(envs)
+
     def act(self, obs: np.ndarray, rng: np.random.Generator | None = None,
-            explore: bool = False, random_eps: np.ndarray | None = None) -> np.ndarray:
+            explore: bool = False, random_eps: np.ndarray | None = None,
+            hold_eps: np.ndarray | None = None) -> np.ndarray:
         """Actions (N, A, U) in [-1, 1] for observations (N, A, O) of N environments.
 
         With ``explore``, noise is added and each agent's action is replaced by a uniform
         random one with probability ``random_eps`` (both need ``rng``; without
-        ``random_grip`` the grip command stays the noisy policy's). ``random_eps`` (N, A),
-        if given, is that probability per environment and agent in place of the config's.
+        ``random_grip`` the grip command stays the noisy policy's); with ``grip_hold_eps``
+        the grip commands being held replace the agents' (``HeldGrip``; call
+        ``start_episodes`` when episodes start). ``random_eps`` and ``hold_eps`` (N, A), if
+        given, are those probabilities per environment and agent in place of the config's.
         """
         with torch.inference_mode():
             o = torch.as_tensor(np.asarray(obs, dtype=np.float32)).transpose(0, 1)
@@ -137,6 +147,8 @@ class DADDPG:
             eps = c.random_eps if random_eps is None else random_eps
             pick = rng.random(actions.shape[:2]) < eps
             actions = np.where(pick[..., None], random, actions)
+            if c.grip_hold_eps > 0:
+                actions = self.grip_hold.apply(rng, actions, self._grip_columns, hold_eps)
             actions *= self.action_mask[:, 0].numpy()
         return actions
 

@@ -191,7 +191,8 @@ class TrainConfig:
                 "reward_heads": self.reward_heads, "demo_episodes": self.demo_episodes > 0,
                 "far_action_l2": self.far_action_l2 is not None,
                 "near_random_eps": self.near_random_eps is not None,
-                "approach_shaping": self.approach_shaping > 0}
+                "approach_shaping": self.approach_shaping > 0,
+                "algo.grip_hold_eps": self.algo.grip_hold_eps > 0}
         return [name for name, on in used.items() if on]
 
     @property

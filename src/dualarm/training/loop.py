@@ -125,11 +125,11 @@ class Trainer:
             relabeller = goals(task, task.observes_joint_angles)
             self.sampler = HindsightSampler(self.buffer, relabeller.achieved, relabeller.relabel,
                                             config.her_share)
-        # far_action_l2, near_random_eps, approach_shaping: each arm's box-minus-grip offset
-        # in its observation, (3,) columns
+        # far_action_l2, near_random_eps, approach_shaping, grip_hold_eps: each arm's
+        # box-minus-grip offset in its observation, (3,) columns
         self.rel_columns = None
         if config.far_action_l2 is not None or config.near_random_eps is not None \
-                or config.approach_shaping > 0:
+                or config.approach_shaping > 0 or config.algo.grip_hold_eps > 0:
             from dualarm.envs.baxter import observation_layout
             self.rel_columns = observation_layout(task.observes_joint_angles)["object_rel_pos"]
         # Demonstrations are recorded again on resume (the expert and the physics are
@@ -322,6 +322,17 @@ class Trainer:
         phi2 = -k * self.box_distance(batch["next_obs"])
         return gamma * (1.0 - batch["done"]).unsqueeze(-1) * phi2 - phi
 
+    def hold_eps(self, obs: np.ndarray) -> np.ndarray | None:
+        """The chance to start holding a random grip command per copy and arm, (n, A), from
+        observations (n, A, O): ``algo.grip_hold_eps`` farther than ``near_box_radius`` m
+        from the box, 0 nearer, so that no hold starts by opening a hand at or on its box
+        (a hold started farther away runs on into the approach); None when holds are off."""
+        eps = self.config.algo.grip_hold_eps
+        if eps == 0:
+            return None
+        near = np.linalg.norm(obs[..., self.rel_columns], axis=-1) <= self.config.near_box_radius
+        return np.where(near, 0.0, eps)
+
     def random_eps(self, obs: np.ndarray) -> np.ndarray | None:
         """The share of random exploring actions per copy and arm, (n, A), from observations
         (n, A, O): ``near_random_eps`` where the grip site is within ``calm_radius`` m of
@@ -351,7 +362,7 @@ class Trainer:
         """Run one episode in each copy (fewer at the end of the run), then update."""
         c, v, agent, a = self.config, self.vec, self.agent, self.config.algo
         n = min(v.num_envs, c.episodes - self.episodes)
-        agent.noise.reset(np.arange(v.num_envs) < n)
+        agent.start_episodes(np.arange(v.num_envs) < n)
         if self.curriculum is not None:      # this round's starts, from the episodes so far
             v.set_start_probs(self.curriculum.probs())
             agent.action_l2 = self.scheduled_action_l2()
@@ -366,7 +377,8 @@ class Trainer:
             if self.env_steps < a.warmup_steps:
                 actions = self.rng.uniform(-1.0, 1.0, (v.num_envs, 2, v.act_size)) * mask
             else:
-                actions = agent.act(obs, self.rng, explore=True, random_eps=self.random_eps(obs))
+                actions = agent.act(obs, self.rng, explore=True, random_eps=self.random_eps(obs),
+                                    hold_eps=self.hold_eps(obs))
             timing["act_s"] += time.perf_counter() - t
             return actions
 
