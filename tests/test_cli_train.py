@@ -162,3 +162,50 @@ def test_every_shipped_config_is_a_valid_train_config(name):
 
     config = TrainConfig.load(Path(__file__).resolve().parents[1] / "configs" / name)
     assert config.episodes >= 1
+
+
+def test_load_learner_restores_the_critics_that_load_policy_leaves_untrained(run_dir):
+    """load_policy restores the actors only; a critic read from it is its initial weights.
+    load_learner restores the critics too (the same actors either way)."""
+    import torch
+
+    from dualarm.training.policy import load_learner, load_policy
+
+    _, policy_only, _ = load_policy(run_dir, "latest")
+    _, learner, info = load_learner(run_dir)
+    assert info["episodes"] >= 8
+    for a, b in zip(policy_only.actor.parameters(), learner.actor.parameters()):
+        assert torch.equal(a, b)
+    assert not all(torch.equal(a, b) for a, b in
+                   zip(policy_only.critic.parameters(), learner.critic.parameters()))
+
+
+def test_critic_returns_add_the_shaping_of_a_potential(run_dir):
+    """With a constant potential c, a step's shaping is gamma c - c, so an episode cut off
+    after T steps returns -c (1 - gamma^(T - t)) more from step t than without it."""
+    from dualarm.training.diagnostics import critic_vs_returns
+    from dualarm.training.loop import make_vector_env
+    from dualarm.training.policy import load_learner
+
+    config, learner, _ = load_learner(run_dir)
+    c, gamma, steps = 0.3, learner.config.gamma, config.task["max_episode_steps"]
+    reports = []
+    for potential in (None, lambda obs: np.full(obs.shape[:-1], c)):
+        vec = make_vector_env(config, 4, constraints=config.load_constraints())
+        reports.append(critic_vs_returns(learner, vec, 4, potential=potential))
+        vec.close()
+    plain, shaped = reports
+    assert (plain.episodes_by_step == 4).all() and len(plain.episodes_by_step) == steps
+    np.testing.assert_allclose(shaped.q_by_step, plain.q_by_step)
+    expected = -c * (1 - gamma ** (steps - np.arange(steps)))
+    np.testing.assert_allclose(shaped.return_by_step - plain.return_by_step,
+                               np.stack([expected] * 2, axis=1), atol=1e-9)
+
+
+def test_diagnose_critic_prints_q_next_to_the_observed_return_by_step(run_dir, capsys):
+    assert main(["diagnose", str(run_dir), "--critic", "--episodes", "4", "--start", "reach"]) == 0
+    out = capsys.readouterr().out
+    assert "from the normal reset: Q - G over all 40 steps" in out
+    rows = [line.split() for line in out.splitlines() if line.strip()[:1].isdigit()]
+    assert [int(r[0]) for r in rows] == [0, 5]                   # steps 0 and 5 of 10
+    assert all(int(r[1]) == 4 and len(r) == 6 for r in rows)

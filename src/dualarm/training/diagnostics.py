@@ -33,6 +33,9 @@ class CriticReport:
         return_first: (A,) mean observed return from the first step.
         bias: (A,) q_mean - return_mean: > 0 is over-estimation.
         steps: transitions compared.
+        q_by_step, return_by_step: (S, A) means over the episodes still running at step t,
+            t = 0..S-1 (S the longest episode): where in an episode the critic is wrong.
+        episodes_by_step: (S,) how many episodes each of those means is over.
     """
 
     q_mean: np.ndarray
@@ -41,6 +44,9 @@ class CriticReport:
     return_first: np.ndarray
     bias: np.ndarray
     steps: int
+    q_by_step: np.ndarray | None = None
+    return_by_step: np.ndarray | None = None
+    episodes_by_step: np.ndarray | None = None
 
     def as_row(self) -> dict:
         """Flat dict for a CSV row (agents 0, 1 as suffixes)."""
@@ -80,13 +86,16 @@ def _target_value(agent, obs: np.ndarray) -> np.ndarray:
 
 
 def critic_vs_returns(agent, vec: VectorEnv, episodes: int = 16,
-                      seed_base: int = EVAL_SEED_BASE) -> CriticReport:
+                      seed_base: int = EVAL_SEED_BASE, potential=None) -> CriticReport:
     """Compare the critics with the observed returns of ``episodes`` deterministic episodes.
 
     Args:
-        agent: a ``DADDPG`` learner.
+        agent: a ``DADDPG`` learner with its trained critics (``policy.load_learner``).
         vec: environment copies (the run's evaluation copies will do).
         episodes: how many episodes (the evaluation's seeds by default).
+        potential: for a run trained with potential-based shaping, phi: raw observations
+            (T, A, O) -> (T, A) in the critic's units; the returns then add
+            gamma * phi(s') * (1 - done) - phi(s) per step, as the learner's targets do.
     """
     gamma, scale = agent.config.gamma, agent.head_scales[0]      # Q in the first head's units
     per_env: dict[int, list] = {}
@@ -104,6 +113,8 @@ def critic_vs_returns(agent, vec: VectorEnv, episodes: int = 16,
     qs, gs, q0, g0 = [], [], [], []
     for ep in finished:
         obs, act, rew, next_obs, term, trunc = (np.stack(x) for x in zip(*ep))
+        if potential is not None:
+            rew = rew + gamma * (1.0 - term[:, None]) * potential(next_obs) - potential(obs)
         tail = 0.0 if term[-1] else _target_value(agent, next_obs[-1:])[0]
         g = discounted_returns(rew, gamma, tail)
         q = _q_values(agent, obs, act)
@@ -112,8 +123,12 @@ def critic_vs_returns(agent, vec: VectorEnv, episodes: int = 16,
         q0.append(q[0])
         g0.append(g[0])
     q_all, g_all = np.concatenate(qs), np.concatenate(gs)
+    longest = max(len(q) for q in qs)
+    count = np.array([sum(len(q) > t for q in qs) for t in range(longest)])
+    by_step = [np.stack([np.pad(x, ((0, longest - len(x)), (0, 0))) for x in xs]).sum(0)
+               / count[:, None] for xs in (qs, gs)]
     return CriticReport(q_all.mean(0), g_all.mean(0), np.mean(q0, 0), np.mean(g0, 0),
-                        q_all.mean(0) - g_all.mean(0), len(q_all))
+                        q_all.mean(0) - g_all.mean(0), len(q_all), *by_step, count)
 
 
 def replay_composition(buffer, thresholds: dict[str, float]) -> dict[str, float]:

@@ -75,6 +75,13 @@ def make_vector_env(config: TrainConfig, num_envs: int,
                         approach_starts=training and config.approach_starts)
 
 
+def approach_potential(obs, rel_columns: slice, k: float):
+    """``approach_shaping``'s potential phi(s) = -k x each arm's grip-to-box distance (m),
+    (..., A), from raw observations (..., A, O), numpy or torch; ``rel_columns`` are the
+    box-minus-grip offset's columns. In the learner's reward units."""
+    return -k * (obs[..., rel_columns] ** 2).sum(-1) ** 0.5
+
+
 class Trainer:
     """One run of DADDPG in a run directory (see ``dualarm.training.run_dir``).
 
@@ -318,8 +325,8 @@ class Trainer:
         grip-to-box distance (m) in the raw observations (B, A, O) (a success ends the
         episode with phi = 0, so the shaped return differs from the paper's by -phi(s0) only)."""
         k, gamma = self.config.approach_shaping, self.config.algo.gamma
-        phi = -k * self.box_distance(batch["obs"])                  # (B, A)
-        phi2 = -k * self.box_distance(batch["next_obs"])
+        phi = approach_potential(batch["obs"], self.rel_columns, k)        # (B, A)
+        phi2 = approach_potential(batch["next_obs"], self.rel_columns, k)
         return gamma * (1.0 - batch["done"]).unsqueeze(-1) * phi2 - phi
 
     def hold_eps(self, obs: np.ndarray) -> np.ndarray | None:

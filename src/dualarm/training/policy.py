@@ -47,6 +47,26 @@ def load_policy(run_dir: str | Path, which: str = "best") -> tuple[TrainConfig, 
     return config, agent, info
 
 
+def load_learner(run_dir: str | Path) -> tuple[TrainConfig, DADDPG, dict]:
+    """The run's config and its whole learner at the latest checkpoint: actors, critics,
+    targets and normaliser (``load_policy`` restores the actors alone, which is all acting
+    needs; a critic read from it would be its untrained initial weights).
+
+    Returns:
+        (config, learner, info) with info {"checkpoint": path, "episodes": int}.
+    """
+    config, agent, info = load_policy(run_dir, "latest")
+    path = info["checkpoint"]
+    payload = load_checkpoint(path)
+    if "learner" not in payload:
+        raise CheckpointError(f"{path}: holds no learner state (critics)")
+    try:
+        agent.load_state_dict(payload["learner"])
+    except (KeyError, ValueError, RuntimeError) as exc:
+        raise CheckpointError(f"{path}: does not fit this run's networks ({exc})") from None
+    return config, agent, info
+
+
 def single_env_policy(agent: DADDPG):
     """The deterministic policy as a callable obs (2, O) -> actions (2, U) for one env."""
     return lambda obs: agent.act(np.asarray(obs)[None])[0]
