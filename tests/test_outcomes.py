@@ -52,8 +52,30 @@ def test_an_arm_that_moves_away_has_moved_without_reaching():
     only(outcomes(lambda o, t: command(dz=1.0, grip=-1.0)), "moved, not reached")
 
 
-def test_an_arm_that_closes_its_hand_on_the_way_has_closed_without_reaching():
-    only(outcomes(lambda o, t: command(dz=1.0, grip=1.0)), "closed, not reached")
+def toward_above(obs, height, grip):
+    """Both arms move to ``height`` m above their boxes' centres, grip command ``grip``."""
+    from dualarm.envs.baxter import observation_layout
+
+    rel = obs[:, observation_layout(TASK.observes_joint_angles)["object_rel_pos"]] + [0, 0, height]
+    a = np.zeros((2, 4))
+    a[:, :3], a[:, 3] = np.clip(rel / 0.05, -1.0, 1.0), grip
+    return a
+
+
+def test_an_arm_that_closes_its_hand_near_the_box_has_closed_without_reaching():
+    """Closed 3 cm above the box (the reach needs 2 cm): closed, not reached; the closest
+    approach of each unreached arm is kept."""
+    report = outcomes(lambda o, t: toward_above(o, 0.03, 1.0))
+    only(report, "closed, not reached")
+    assert all(0.02 < d < 0.05 for arm in report.closest_unreached for d in arm)
+    assert "not reached: closest, cm" in report.table()
+
+
+def test_a_closed_hand_that_never_comes_near_the_box_has_moved_without_reaching():
+    """Fingers closed while flying up and away: the approach failed, not the grip."""
+    report = outcomes(lambda o, t: command(dz=1.0, grip=1.0))
+    only(report, "moved, not reached")
+    assert all(d > 0.15 for arm in report.closest_unreached for d in arm)
 
 
 def test_open_fingers_at_the_box_are_reached_not_closed():

@@ -15,15 +15,19 @@ box never grasped in all but the first three):
 ``closed off the box``     after the reach, the fingers first closed farther than the grasp
                            tolerance from the box (a grip that drifted off while closing);
 ``reached, not closed``    came within reach of its box, never closed the fingers;
-``closed, not reached``    never within reach, moving, and the fingers closed on the way (with
-                           nothing between them: a hand closed early cannot take the box);
-``moved, not reached``     never within reach, moving, the fingers never closed;
+``closed, not reached``    never within reach, moving, and the fingers closed within
+                           ``near_radius`` of the box (with nothing between them: a hand
+                           closed early cannot take the box);
+``moved, not reached``     never within reach, moving, never within ``near_radius`` of the box
+                           with the fingers closed (most often: never near the box at all);
 ``still``                  never within reach, its mean motion command under ``still_action``.
 
 A learner that fails shows here which link fails and how: an arm that keeps still at home,
 a grip that drifts off the box while the fingers close, a grip too weak to lift. "Closed" is
 the task's own test (finger gap at most the box width plus ``grasp_gap_margin``), so fingers
-closed above the box, with nothing between them, count as closed too.
+closed above the box, with nothing between them, count as closed too. The report also
+keeps each unreached arm's closest approach to its box: an arm that never comes near is a
+failure of the approach, not of the grip.
 """
 
 from __future__ import annotations
@@ -53,11 +57,14 @@ class OutcomeReport:
             ``episodes``).
         success: (episodes,) bool, the task solved.
         episodes: how many episodes.
+        closest_unreached: per arm, the closest approach (m) of its box in each episode in
+            which it never reached it.
     """
 
     counts: np.ndarray
     success: np.ndarray
     episodes: int
+    closest_unreached: tuple[list[float], list[float]] = ([], [])
 
     @property
     def success_rate(self) -> float:
@@ -73,6 +80,9 @@ class OutcomeReport:
         for k, name in enumerate(OUTCOMES):
             if self.counts[:, k].any():
                 lines.append(f"  {name:<24}" + "".join(f"{int(n):>8}" for n in self.counts[:, k]))
+        if any(self.closest_unreached):
+            medians = [f"{100 * np.median(d):>8.1f}" if d else f"{'-':>8}" for d in self.closest_unreached]
+            lines.append(f"  {'not reached: closest, cm':<24}" + "".join(medians) + "  (median)")
         return "\n".join(lines)
 
 
@@ -86,7 +96,8 @@ class _ArmTrace:
         self.closed_at = np.full(shape, np.nan)     # grip-to-box distance (m) when the fingers
         #                                             first count as closed after the reach
         self.lifted_closed = np.zeros(shape, dtype=bool)
-        self.closed_unreached = np.zeros(shape, dtype=bool)   # fingers closed before any reach
+        self.closed_unreached = np.zeros(shape, dtype=bool)   # closed near the box, before any reach
+        self.closest = np.full(shape, np.inf)       # closest approach of the box so far, m
         self.motion = np.zeros(shape)               # summed mean |motion command|
         self.steps = np.zeros(n, dtype=np.int64)
         self.box_rest_z = np.full(shape, np.nan)    # the box's height at the first step, m
@@ -124,7 +135,8 @@ def _classify(t: _ArmTrace, i: int, last_obs: np.ndarray, last_subtask: np.ndarr
 
 
 def link_outcomes(act, vec: VectorEnv, task: TaskConfig, episodes: int = 32,
-                  seed_base: int = EVAL_SEED_BASE, still_action: float = 0.05) -> OutcomeReport:
+                  seed_base: int = EVAL_SEED_BASE, still_action: float = 0.05,
+                  near_radius: float = 0.05) -> OutcomeReport:
     """Class each arm's episode of a deterministic policy by the link at which it stopped.
 
     Args:
@@ -136,12 +148,15 @@ def link_outcomes(act, vec: VectorEnv, task: TaskConfig, episodes: int = 32,
         episodes: how many seeded episodes (the evaluation's seeds by default).
         still_action: mean |motion command| (per component, in [0, 1]) under which an arm
             that never reached its box counts as ``still``.
+        near_radius: metres; fingers closed this near the box before the reach make an
+            unreached arm ``closed, not reached``.
     """
     if not vec.has_subtasks:
         raise ValueError("link_outcomes needs the Baxter task's copies (sub-task states)")
     layout = observation_layout(task.observes_joint_angles)
     gap_closed = closed_gap(task)
     counts = np.zeros((2, len(OUTCOMES)), dtype=np.int64)
+    closest = ([], [])
     trace = _ArmTrace(vec.num_envs)
 
     def on_step(obs, actions, step, live):
@@ -158,7 +173,8 @@ def link_outcomes(act, vec: VectorEnv, task: TaskConfig, episodes: int = 32,
         rise = o[..., layout["object_pos"]][..., 2] - trace.box_rest_z[live]
         sub = step.subtask[live]
         trace.reached[live] |= (sub >= 1) | (dist < task.reach_threshold)
-        trace.closed_unreached[live] |= closed & ~trace.reached[live]
+        trace.closed_unreached[live] |= closed & ~trace.reached[live] & (dist <= near_radius)
+        trace.closest[live] = np.minimum(trace.closest[live], dist)
         trace.grasped_ever[live] |= sub == 2
         newly = closed & trace.reached[live] & np.isnan(trace.closed_at[live])
         trace.closed_at[live] = np.where(newly, dist, trace.closed_at[live])
@@ -169,7 +185,9 @@ def link_outcomes(act, vec: VectorEnv, task: TaskConfig, episodes: int = 32,
             if step.terminated[i] or step.truncated[i]:
                 for arm, k in enumerate(_classify(trace, i, o[j], sub[j], layout, task, still_action)):
                     counts[arm, k] += 1
+                    if not trace.reached[i, arm]:
+                        closest[arm].append(float(trace.closest[i, arm]))
                 trace.steps[i] = 0                                   # the copy's next episode
 
     result = evaluate(act, vec, episodes, seed_base, on_step=on_step)
-    return OutcomeReport(counts, result.success, episodes)
+    return OutcomeReport(counts, result.success, episodes, closest)
