@@ -397,6 +397,21 @@ def test_far_action_l2_weighs_the_penalty_by_the_distance_to_the_box(tmp_path):
         curriculum_config(near_box_radius=0.0)
 
 
+def exploring_arguments(trainer, name: str) -> list:
+    """Run ``trainer`` to its end, recording the keyword argument ``name`` of every exploring
+    ``agent.act`` call (None where the loop did not pass it)."""
+    seen, act = [], trainer.agent.act
+
+    def spy(obs, rng=None, explore=False, **kw):
+        if explore:
+            seen.append(kw.get(name))
+        return act(obs, rng, explore, **kw)
+
+    trainer.agent.act = spy
+    trainer.run()
+    return seen
+
+
 def test_near_random_eps_sets_the_share_of_random_actions_near_the_box(tmp_path):
     config = curriculum_config(near_random_eps=0.0, near_box_radius=0.05, episodes=8,
                                algo=DADDPGConfig(hidden=(16, 16), random_eps=0.3, batch_size=16,
@@ -407,13 +422,8 @@ def test_near_random_eps_sets_the_share_of_random_actions_near_the_box(tmp_path)
             [[0.03, 0.0, 0.0]] * 2,                              # both near
             [[0.0, 0.0, -0.2], [0.0, 0.0, 0.0]]])                # left far, right at the box
         np.testing.assert_allclose(trainer.random_eps(obs), [[0.0, 0.0], [0.3, 0.0]])
-        seen = []
-        act = trainer.agent.act
-        trainer.agent.act = lambda o, rng=None, explore=False, random_eps=None, **kw: \
-            seen.append(random_eps) or act(o, rng, explore, random_eps, **kw)
-        trainer.run()
-        explored = [e for e in seen if e is not None]
-        assert explored and all(e.shape == (4, 2) for e in explored)
+        explored = exploring_arguments(trainer, "random_eps")
+        assert explored and all(e is not None and e.shape == (4, 2) for e in explored)
         assert any((e == 0.0).any() for e in explored) and any((e == 0.3).any() for e in explored)
     finally:
         trainer.close()
@@ -448,11 +458,7 @@ def test_grip_holds_start_only_away_from_the_box(tmp_path):
         obs = box_offset_obs(config, trainer.vec.obs_size, [
             [[0.03, 0.0, 0.0]] * 2, [[0.0, 0.0, -0.2], [0.0, 0.0, 0.0]]])
         np.testing.assert_allclose(trainer.hold_eps(obs), [[0.0, 0.0], [0.2, 0.0]])
-        seen = []
-        act = trainer.agent.act
-        trainer.agent.act = lambda o, rng=None, explore=False, hold_eps=None, **kw: \
-            (explore and seen.append(hold_eps)) or act(o, rng, explore, hold_eps=hold_eps, **kw)
-        trainer.run()
+        seen = exploring_arguments(trainer, "hold_eps")
         assert seen and all(e is not None and e.shape == (4, 2) for e in seen)
         assert all(set(np.unique(e)) <= {0.0, 0.2} for e in seen)
     finally:
