@@ -75,11 +75,24 @@ def make_vector_env(config: TrainConfig, num_envs: int,
                         approach_starts=training and config.approach_starts)
 
 
+def box_offset_columns(task) -> slice:
+    """The columns (3,) of each arm's box-minus-grip offset in the observations of ``task``
+    (a ``TaskConfig``)."""
+    from dualarm.envs.baxter import observation_layout
+
+    return observation_layout(task.observes_joint_angles)["object_rel_pos"]
+
+
+def grip_to_box_distance(obs, rel_columns: slice):
+    """Each arm's grip-to-box distance (m), (..., A), from raw observations (..., A, O),
+    numpy or torch; ``rel_columns`` from ``box_offset_columns``."""
+    return (obs[..., rel_columns] ** 2).sum(-1) ** 0.5
+
+
 def approach_potential(obs, rel_columns: slice, k: float):
     """``approach_shaping``'s potential phi(s) = -k x each arm's grip-to-box distance (m),
-    (..., A), from raw observations (..., A, O), numpy or torch; ``rel_columns`` are the
-    box-minus-grip offset's columns. In the learner's reward units."""
-    return -k * (obs[..., rel_columns] ** 2).sum(-1) ** 0.5
+    (..., A), from raw observations (..., A, O), numpy or torch. In the learner's reward units."""
+    return -k * grip_to_box_distance(obs, rel_columns)
 
 
 class Trainer:
@@ -137,8 +150,7 @@ class Trainer:
         self.rel_columns = None
         if config.far_action_l2 is not None or config.near_random_eps is not None \
                 or config.approach_shaping > 0 or config.algo.grip_hold_eps > 0:
-            from dualarm.envs.baxter import observation_layout
-            self.rel_columns = observation_layout(task.observes_joint_angles)["object_rel_pos"]
+            self.rel_columns = box_offset_columns(task)
         # Demonstrations are recorded again on resume (the expert and the physics are
         # deterministic); the normaliser's statistics then come from the checkpoint.
         self.demos = None
@@ -308,9 +320,10 @@ class Trainer:
         return TrainResult(self.paths.root, self.episodes, self.env_steps, self.wall_time_s,
                            self.last_eval)
 
-    def box_distance(self, obs: torch.Tensor) -> torch.Tensor:
-        """Each arm's grip-to-box distance (m), (B, A), from raw observations (B, A, O)."""
-        return obs[..., self.rel_columns].norm(dim=-1)
+    def box_distance(self, obs):
+        """Each arm's grip-to-box distance (m), (B, A), from raw observations (B, A, O),
+        numpy or torch."""
+        return grip_to_box_distance(obs, self.rel_columns)
 
     def penalty_weight(self, obs: torch.Tensor) -> torch.Tensor:
         """The action penalty's weight per sample and arm, (B, A), from raw observations
@@ -325,7 +338,7 @@ class Trainer:
         grip-to-box distance (m) in the raw observations (B, A, O) (a success ends the
         episode with phi = 0, so the shaped return differs from the paper's by -phi(s0) only)."""
         k, gamma = self.config.approach_shaping, self.config.algo.gamma
-        phi = approach_potential(batch["obs"], self.rel_columns, k)        # (B, A)
+        phi = approach_potential(batch["obs"], self.rel_columns, k)         # (B, A)
         phi2 = approach_potential(batch["next_obs"], self.rel_columns, k)
         return gamma * (1.0 - batch["done"]).unsqueeze(-1) * phi2 - phi
 
@@ -337,8 +350,7 @@ class Trainer:
         eps = self.config.algo.grip_hold_eps
         if eps == 0:
             return None
-        near = np.linalg.norm(obs[..., self.rel_columns], axis=-1) <= self.config.near_box_radius
-        return np.where(near, 0.0, eps)
+        return np.where(self.box_distance(obs) <= self.config.near_box_radius, 0.0, eps)
 
     def random_eps(self, obs: np.ndarray) -> np.ndarray | None:
         """The share of random exploring actions per copy and arm, (n, A), from observations
@@ -349,7 +361,7 @@ class Trainer:
         if c.near_random_eps is None:
             return None
         radius = c.near_box_radius if c.calm_radius is None else c.calm_radius
-        near = np.linalg.norm(obs[..., self.rel_columns], axis=-1) <= radius
+        near = self.box_distance(obs) <= radius
         return np.where(near, c.near_random_eps, c.algo.random_eps)
 
     def scheduled_action_l2(self) -> float:

@@ -26,25 +26,7 @@ def load_policy(run_dir: str | Path, which: str = "best") -> tuple[TrainConfig, 
         (config, learner, info) with info {"checkpoint": path, "episodes": int or None,
         "eval": the best evaluation or None}.
     """
-    if which not in CHECKPOINTS:
-        raise InputError(f"checkpoint must be one of {CHECKPOINTS}, got {which!r}")
-    paths = RunPaths(run_dir)
-    if not paths.config.exists():
-        raise InputError(f"{paths.root}: not a run directory (no config.yaml)")
-    config = TrainConfig.load(paths.config)
-    path = paths.best if which == "best" and paths.best.exists() else paths.latest
-    payload = load_checkpoint(path)
-    try:
-        # a learner state holds the policy's parts (actor, normaliser, sizes) too
-        state = payload["policy"] if "policy" in payload else payload["learner"]
-        agent = DADDPG(config.algo, state["obs_sizes"], state["act_sizes"], seed=config.seed,
-                       head_scales=state.get("head_scales"))
-        agent.load_policy_state_dict(state)
-        episodes = payload["eval"]["episode"] if "policy" in payload else payload["counters"]["episodes"]
-    except (KeyError, ValueError, RuntimeError) as exc:
-        raise CheckpointError(f"{path}: does not fit this run's networks ({exc})") from None
-    info = {"checkpoint": path, "episodes": episodes, "eval": payload.get("eval")}
-    return config, agent, info
+    return _load(run_dir, which, whole=False)
 
 
 def load_learner(run_dir: str | Path) -> tuple[TrainConfig, DADDPG, dict]:
@@ -53,17 +35,37 @@ def load_learner(run_dir: str | Path) -> tuple[TrainConfig, DADDPG, dict]:
     needs; a critic read from it would be its untrained initial weights).
 
     Returns:
-        (config, learner, info) with info {"checkpoint": path, "episodes": int}.
+        (config, learner, info) as ``load_policy``'s.
     """
-    config, agent, info = load_policy(run_dir, "latest")
-    path = info["checkpoint"]
+    return _load(run_dir, "latest", whole=True)
+
+
+def _load(run_dir: str | Path, which: str, whole: bool) -> tuple[TrainConfig, DADDPG, dict]:
+    """Read the run's config and one checkpoint (once: a latest checkpoint holds the replay
+    buffer too); restore the policy's parts, or with ``whole`` the whole learner."""
+    if which not in CHECKPOINTS:
+        raise InputError(f"checkpoint must be one of {CHECKPOINTS}, got {which!r}")
+    paths = RunPaths(run_dir)
+    if not paths.config.exists():
+        raise InputError(f"{paths.root}: not a run directory (no config.yaml)")
+    config = TrainConfig.load(paths.config)
+    path = paths.best if which == "best" and paths.best.exists() else paths.latest
     payload = load_checkpoint(path)
-    if "learner" not in payload:
+    if whole and "learner" not in payload:
         raise CheckpointError(f"{path}: holds no learner state (critics)")
     try:
-        agent.load_state_dict(payload["learner"])
+        # a learner state holds the policy's parts (actor, normaliser, sizes) too
+        state = payload["policy"] if "policy" in payload else payload["learner"]
+        agent = DADDPG(config.algo, state["obs_sizes"], state["act_sizes"], seed=config.seed,
+                       head_scales=state.get("head_scales"))
+        if whole:
+            agent.load_state_dict(state)
+        else:
+            agent.load_policy_state_dict(state)
+        episodes = payload["eval"]["episode"] if "policy" in payload else payload["counters"]["episodes"]
     except (KeyError, ValueError, RuntimeError) as exc:
         raise CheckpointError(f"{path}: does not fit this run's networks ({exc})") from None
+    info = {"checkpoint": path, "episodes": episodes, "eval": payload.get("eval")}
     return config, agent, info
 
 
