@@ -140,6 +140,21 @@ def test_bad_inputs_name_what_is_wrong(tmp_path, capsys):
     assert not (tmp_path / "r2").exists()                 # nothing written for a bad start
 
 
+def test_train_without_a_config_uses_the_recipe(tmp_path, capsys):
+    """`dualarm train` with no --config trains with the shipped recipe (dualarm/data/recipe.yaml),
+    whose conditions all observe the joint angles; the options given override it."""
+    from dualarm.training import TrainConfig
+
+    out = tmp_path / "run"
+    assert main(["train", "--condition", "none", "--episodes", "4", "--num-envs", "4",
+                 "--out", str(out)]) == 0
+    saved = TrainConfig.load(out / "config.yaml")
+    assert saved == TrainConfig.recipe().with_(condition="none", episodes=4, num_envs=4)
+    assert saved.her_share == 0.8 and saved.algo.twin_critics and saved.approach_shaping == 1.0
+    assert saved.task_config().observes_joint_angles          # none observes them too
+    assert TrainConfig().with_(condition="none").task_config().observes_joint_angles is False
+
+
 def test_shipped_expert_demos_config_trains(tmp_path, capsys):
     """configs/expert-demos.yaml, the settings of docs/training.md's fourth round, stays a
     valid --config: demonstrations recorded, the twin critics and reward scale in force."""

@@ -64,7 +64,9 @@ def grid_options(p: argparse.ArgumentParser) -> None:
                         "a local Ray instance)")
     p.add_argument("--config", type=InputPath, metavar="BASE.yaml",
                    help="TrainConfig fields for every run (as `dualarm train --config`); "
-                        "condition, seed and constraints are set per run")
+                        "condition, seed and constraints are set per run. Default: "
+                        "TrainConfig's defaults, the paper's plain DDPG; the recipe that "
+                        "`dualarm train` uses is src/dualarm/data/recipe.yaml")
 
 
 def add_compare_command(sub) -> None:

@@ -51,7 +51,7 @@ def add_pipeline_command(sub) -> None:
     p.add_argument("-o", "--output", type=OutputDir, default=Path("out/pipeline"), metavar="DIR",
                    help="output directory (default: out/pipeline)")
     p.add_argument("--episodes", type=positive_int, default=200, metavar="N",
-                   help="training episodes per run (default: 200, about 9 minutes on 2 cores)")
+                   help="training episodes per run (default: 200, about 12 minutes on 2 cores)")
     grid_options(p)
     p.add_argument("--demo-dir", type=InputPath, metavar="DIR",
                    help=f"demonstrations with {LABELS_NAME} (default: the shipped ones)")

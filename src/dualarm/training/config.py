@@ -12,6 +12,10 @@ from dualarm.rl.config import DADDPGConfig
 from dualarm.typed_fields import check_field_types
 from dualarm.yaml_io import read_yaml
 
+#: The recipe (``TrainConfig.recipe``): the settings under which DADDPG learns the whole
+#: task without demonstrations, and what `dualarm train` uses without --config.
+RECIPE_PATH = Path(__file__).resolve().parents[1] / "data" / "recipe.yaml"
+
 #: TaskConfig fields a run may override (the rest keep the task's defaults).
 TASK_OVERRIDES = ("control", "goal", "success_at", "max_episode_steps", "joint_angles_in_obs",
                   "reach_threshold", "terminate_on_success", "coordinate_bonus", "grasp_bonus",
@@ -260,6 +264,14 @@ class TrainConfig:
 
         with atomic_open(path) as f:
             f.write(yaml.safe_dump(self.to_dict(), sort_keys=False).encode())
+
+    @classmethod
+    def recipe(cls) -> "TrainConfig":
+        """The recipe: the shipped settings (``RECIPE_PATH``, docs/learning-runs.md) under
+        which the paper's learner learns reach-grasp-align from the normal reset, the same
+        for every condition (change ``condition``, ``seed`` and ``episodes`` with ``with_``).
+        The dataclass's own defaults are the paper's plain DDPG, which does not learn it."""
+        return cls.load(RECIPE_PATH)
 
     @classmethod
     def load(cls, path: str | Path) -> "TrainConfig":
