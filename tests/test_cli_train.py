@@ -51,6 +51,37 @@ def test_eval_prints_success_and_return(run_dir, capsys):
     assert "success rate" in out and "/3)" in out and "starting at" not in out
 
 
+def test_eval_with_the_target_actors_acts_with_the_latest_checkpoints_averages(tmp_path, capsys):
+    """--actor target evaluates the Polyak-averaged actors of the latest checkpoint, which
+    after training differ from the actors themselves."""
+    import torch
+
+    from dualarm.training.policy import load_learner, load_target_policy
+
+    config = tmp_path / "small.yaml"
+    config.write_text(yaml.safe_dump({**SMALL, "algo": {**SMALL["algo"], "warmup_steps": 20}}))
+    run_dir = tmp_path / "run"
+    assert main(["train", "--condition", "none", "--episodes", "16", "--num-envs", "4",
+                 "--config", str(config), "--out", str(run_dir)]) == 0
+    _, learner, _ = load_learner(run_dir)
+    assert learner.updates > 0
+    _, target, info = load_target_policy(run_dir)
+    assert info["checkpoint"].name == "latest.pt"
+    for mine, theirs, online in zip(target.actor.parameters(), learner.actor_target.parameters(),
+                                    learner.actor.parameters()):
+        assert torch.equal(mine, theirs)
+    assert not all(torch.equal(a, b) for a, b in zip(learner.actor_target.parameters(),
+                                                     learner.actor.parameters()))
+    obs = np.random.default_rng(0).normal(size=(3, 2, learner.obs_size))
+    normalized = learner.normalizer.normalize(torch.as_tensor(obs, dtype=torch.float32))  # (N, A, O)
+    averaged = learner.actor_target(normalized.transpose(0, 1)).transpose(0, 1)           # (N, A, U)
+    assert np.allclose(target.act(obs), averaged.detach().numpy() * learner.action_mask[:, 0].numpy(),
+                       atol=1e-6)
+    assert main(["eval", str(run_dir), "--episodes", "3", "--actor", "target"]) == 0
+    out = capsys.readouterr().out
+    assert "latest.pt" in out and "target actors" in out and "/3)" in out
+
+
 def test_eval_from_later_starts_puts_both_arms_there(run_dir, capsys, monkeypatch):
     """--start align: every evaluation episode begins with both arms holding their boxes."""
     from dualarm.training import evaluation

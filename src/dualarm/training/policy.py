@@ -40,6 +40,21 @@ def load_learner(run_dir: str | Path) -> tuple[TrainConfig, DADDPG, dict]:
     return _load(run_dir, "latest", whole=True)
 
 
+def load_target_policy(run_dir: str | Path) -> tuple[TrainConfig, DADDPG, dict]:
+    """The run's latest checkpoint with its target actors acting: the Polyak averages of the
+    actors (Eq. 15, ``tau`` per update), an exponential moving average of the policy over
+    about 1 / tau updates, which a run's last updates move less than the actors themselves.
+    Only the latest checkpoint holds them (a best-policy file keeps the actors alone).
+
+    Returns:
+        (config, learner, info) as ``load_policy``'s; the learner's actors are its target
+        actors (for acting and evaluating only: it is not a learner to continue training).
+    """
+    config, agent, info = load_learner(run_dir)
+    agent.actor.load_state_dict(agent.actor_target.state_dict())
+    return config, agent, info
+
+
 def _load(run_dir: str | Path, which: str, whole: bool) -> tuple[TrainConfig, DADDPG, dict]:
     """Read the run's config and one checkpoint (once: a latest checkpoint holds the replay
     buffer too); restore the policy's parts, or with ``whole`` the whole learner."""
