@@ -249,11 +249,36 @@ def test_state_dict_round_trip_continues_identically():
         other.load_state_dict(a.state_dict())
 
 
+@pytest.mark.parametrize("eval_actor", ["online", "target"])
+def test_the_deterministic_policy_acts_with_eval_actor_and_exploration_with_the_actors(eval_actor):
+    """eval_actor "target": evaluations act with the Polyak-averaged actors; exploring actions
+    (noise and random actions off here) still come from the online actors; a policy file
+    holds the evaluated actors, and a learner loaded from it acts as the saved one did."""
+    agent = small_agent(eval_actor=eval_actor, noise_std=0.0, tau=0.5)
+    for k in range(3):
+        agent.update(random_batch(k))
+    obs = random_batch(9)["obs"].numpy()                                    # (N, A, O)
+    o = torch.as_tensor(obs).transpose(0, 1)
+    norm = agent.normalizer.normalize(o.transpose(0, 1)).transpose(0, 1)
+    mask = agent.action_mask
+    online = (agent.actor(norm) * mask).transpose(0, 1).detach().numpy()
+    averaged = (agent.actor_target(norm) * mask).transpose(0, 1).detach().numpy()
+    assert not np.allclose(online, averaged, atol=1e-4)
+    evaluated = agent.act(obs)
+    np.testing.assert_allclose(evaluated, averaged if eval_actor == "target" else online, atol=1e-6)
+    np.testing.assert_allclose(agent.act(obs, np.random.default_rng(0), explore=True), online, atol=1e-6)
+    loaded = small_agent(eval_actor=eval_actor)
+    loaded.load_policy_state_dict(agent.policy_state_dict())
+    np.testing.assert_allclose(loaded.act(obs), evaluated, atol=1e-6)
+
+
 def test_config_validation_names_the_field():
     with pytest.raises(ValueError, match="gamma"):
         DADDPGConfig(gamma=1.5)
     with pytest.raises(ValueError, match="tau"):
         DADDPGConfig(tau=0.0)
+    with pytest.raises(ValueError, match="eval_actor"):
+        DADDPGConfig(eval_actor="averaged")
     with pytest.raises(ValueError, match="unknown DADDPG field"):
         DADDPGConfig.from_dict({"learning_rate": 1e-3})
     assert DADDPGConfig.from_dict(DADDPGConfig().to_dict()) == DADDPGConfig()

@@ -107,6 +107,11 @@ class DADDPGConfig:
     only where the critic rates the demonstrated action above the actor's (Nair et al. 2018)."""
     updates_per_step: float = 0.5
     """Gradient updates per joint environment step (the update-to-data ratio)."""
+    eval_actor: str = "online"
+    """The actors the deterministic policy acts with (evaluations, curriculum probes, the best
+    policy file, ``dualarm eval/play/export``): "online", the actors the gradient trains, or
+    "target", their Polyak averages (Eq. 15), which a run's last updates move less
+    (docs/learning-runs.md, round 12). Exploring actions always come from the online actors."""
     warmup_steps: int = 1000
     """Joint environment steps of uniformly random actions before learning starts."""
 
@@ -123,7 +128,7 @@ class DADDPGConfig:
             "grad_clip": self.grad_clip >= 0, "reward_scale": self.reward_scale > 0,
             "q_clip": self.q_clip >= 0, "target_noise": self.target_noise >= 0, "updates_per_step": self.updates_per_step >= 0,
             "demo_batch_size": self.demo_batch_size >= 0, "bc_weight": self.bc_weight >= 0,
-            "warmup_steps": self.warmup_steps >= 0,
+            "warmup_steps": self.warmup_steps >= 0, "eval_actor": self.eval_actor in ("online", "target"),
         }
         bad = [name for name, ok in checks.items() if not ok]
         if bad:

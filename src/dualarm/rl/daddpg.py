@@ -112,10 +112,11 @@ class DADDPG:
         return (weight * squared.mean(dim=2, keepdim=True)).mean(dim=(1, 2))
 
     # --------------------------------------------------------------- acting
-    def policy(self, obs: torch.Tensor) -> torch.Tensor:
-        """mu_i(s_i) for every agent: obs (A, B, O) raw float32 -> actions (A, B, U)."""
-        return self.actor(self.normalizer.normalize(obs.transpose(0, 1)).transpose(0, 1)) \
-            * self.action_mask
+    def policy(self, obs: torch.Tensor, explore: bool = True) -> torch.Tensor:
+        """mu_i(s_i) for every agent: obs (A, B, O) raw float32 -> actions (A, B, U). The
+        online actors, or with ``explore`` False the config's ``eval_actor``."""
+        actor = self.actor_target if not explore and self.config.eval_actor == "target" else self.actor
+        return actor(self.normalizer.normalize(obs.transpose(0, 1)).transpose(0, 1)) * self.action_mask
 
     def start_episodes(self, envs: np.ndarray) -> None:
         """New episodes begin in the environments of the boolean mask (N,): the exploration
@@ -137,7 +138,7 @@ class DADDPG:
         """
         with torch.inference_mode():
             o = torch.as_tensor(np.asarray(obs, dtype=np.float32)).transpose(0, 1)
-            actions = self.policy(o).transpose(0, 1).numpy().astype(np.float64)
+            actions = self.policy(o, explore).transpose(0, 1).numpy().astype(np.float64)
         if explore:
             c = self.config
             actions = np.clip(actions + self.noise.sample(rng, actions.shape), -1.0, 1.0)
@@ -331,9 +332,16 @@ class DADDPG:
             self.torch_rng.set_state(state["torch_rng"])
 
     def policy_state_dict(self) -> dict:
-        """What acting needs: the actors and the normaliser (small; for ``best`` policies)."""
-        return {**{p: getattr(self, p).state_dict() for p in self._POLICY_PARTS}, **self._shapes()}
+        """What acting needs: the normaliser and, as "actor", the actors the deterministic
+        policy uses (``eval_actor``: the online or the target actors); small, for ``best``
+        policies."""
+        state = {**{p: getattr(self, p).state_dict() for p in self._POLICY_PARTS}, **self._shapes()}
+        if self.config.eval_actor == "target":
+            state["actor"] = self.actor_target.state_dict()
+        return state
 
     def load_policy_state_dict(self, state: dict) -> None:
-        """Restore from ``policy_state_dict()``."""
+        """Restore from ``policy_state_dict()``: its actors become both the online and the
+        target actors, so that the deterministic policy is the saved one either way."""
         self._restore(state, self._POLICY_PARTS, "policy")
+        self.actor_target.load_state_dict(self.actor.state_dict())
