@@ -67,8 +67,7 @@ def test_eval_with_the_target_actors_acts_with_the_latest_checkpoints_averages(t
     assert learner.updates > 0
     _, target, info = load_target_policy(run_dir)
     assert info["checkpoint"].name == "latest.pt"
-    for mine, theirs, online in zip(target.actor.parameters(), learner.actor_target.parameters(),
-                                    learner.actor.parameters()):
+    for mine, theirs in zip(target.actor.parameters(), learner.actor_target.parameters()):
         assert torch.equal(mine, theirs)
     assert not all(torch.equal(a, b) for a, b in zip(learner.actor_target.parameters(),
                                                      learner.actor.parameters()))

@@ -258,8 +258,7 @@ def test_the_deterministic_policy_acts_with_eval_actor_and_exploration_with_the_
     for k in range(3):
         agent.update(random_batch(k))
     obs = random_batch(9)["obs"].numpy()                                    # (N, A, O)
-    o = torch.as_tensor(obs).transpose(0, 1)
-    norm = agent.normalizer.normalize(o.transpose(0, 1)).transpose(0, 1)
+    norm = agent.normalizer.normalize(torch.as_tensor(obs)).transpose(0, 1)     # (A, N, O)
     mask = agent.action_mask
     online = (agent.actor(norm) * mask).transpose(0, 1).detach().numpy()
     averaged = (agent.actor_target(norm) * mask).transpose(0, 1).detach().numpy()
