@@ -10,7 +10,8 @@ from scipy import stats
 from dualarm.cli.main import main
 from dualarm.errors import InputError
 from dualarm.experiments.metrics import (condition_ratios, convergence, episodes_to_target,
-                                         max_average, mean_ci, ratio, trailing_mean)
+                                         max_average, mean_ci, median_ratio_ci, ratio,
+                                         trailing_mean)
 from dualarm.experiments.report import write_report
 from dualarm.experiments.summary import PAPER, PAPER_QUOTED_RATIOS, build_report, paper_ratio
 from dualarm.training.config import TrainConfig
@@ -141,6 +142,31 @@ def test_ratios_are_never_made_up():
     assert ratio(3.0, 0.0) is None and ratio(3.0, 4.0) == 0.75
 
 
+def test_median_ratios_count_failed_seeds_as_beyond_the_run():
+    # identical seeds: the interval collapses onto the ratio of the medians
+    assert median_ratio_ci([1000, 1000, 1000], [2000, 2000]) == (0.5, 0.5, 0.5)
+    # one failed seed of three leaves the median finite; the interval's top is unbounded,
+    # since a resampling can draw the failure twice
+    r, lo, hi = median_ratio_ci([5000, 7000, math.nan], [6000, 6000, 6000])
+    assert r == pytest.approx(7000 / 6000) and lo == pytest.approx(5000 / 6000) and math.isinf(hi)
+    # two of three failed: the median itself is beyond the run; dropping them (the ratio of
+    # the means over the seeds that reached) would have said 0.83
+    r, lo, hi = median_ratio_ci([5000, math.nan, math.nan], [6000, 6000, 6000])
+    assert math.isinf(r) and lo == pytest.approx(5000 / 6000) and math.isinf(hi)
+    # the denominator failing makes the numerator infinitely faster: 0
+    assert median_ratio_ci([5000] * 3, [math.nan] * 3)[:2] == (0.0, 0.0)
+    # both beyond the run, or no seeds: no ratio
+    assert median_ratio_ci([math.nan] * 2, [math.nan] * 3) is None
+    assert median_ratio_ci([], [1.0]) is None
+    # the same numbers on every call (a fixed bootstrap seed), and they depend on the data
+    a, b = [4000, 5200, 6100, 7000, 9000], [5000, 6400, 7700, 8800, 9900]
+    assert median_ratio_ci(a, b) == median_ratio_ci(a, b)
+    r, lo, hi = median_ratio_ci(a, b)
+    assert r == pytest.approx(6100 / 7700) and lo < r < hi < 2
+    with pytest.raises(ValueError, match="confidence"):
+        median_ratio_ci(a, b, confidence=1.5)
+
+
 def test_the_paper_ratios_agree_with_its_values():
     for (quantity, pair), quoted in PAPER_QUOTED_RATIOS.items():
         derived = PAPER[quantity][pair[0]] / PAPER[quantity][pair[1]]
@@ -244,6 +270,18 @@ def test_report_end_to_end(comparison, capsys):
     assert float(t["multi"]["episodes_to_target_ratio_vs_none"]) == pytest.approx(153 / 353)
     assert float(t["multi"]["paper_episodes_to_target"]) == 4480
     assert t["none"]["convergence_episode_ratio_vs_none"] == ""   # not a pair the paper quotes
+    # medians over every seed with bootstrap intervals. none seed 2 never converged: counted
+    # as beyond the run, the none median is seed 1's 358 (seeds 0, 1: 348, 358), and
+    # resamplings that draw it twice make none's median infinite (the interval's low end 0)
+    assert float(t["multi"]["convergence_episode_median_ratio_vs_none"]) == pytest.approx(158 / 358)
+    assert float(t["multi"]["convergence_episode_median_ratio_vs_none_low"]) == 0.0
+    # the top: multi at its slowest median (168) over none at its fastest (348), both drawn
+    # often enough (7/27 each) to hold the 97.5th percentile
+    assert float(t["multi"]["convergence_episode_median_ratio_vs_none_high"]) == pytest.approx(168 / 348)
+    assert float(t["multi"]["episodes_to_target_median_ratio_vs_none"]) == pytest.approx(153 / 353)
+    # time to the target: the wall time at that episode (RATE seconds per episode)
+    assert float(t["multi"]["time_to_target_s_mean"]) == pytest.approx(RATE["multi"] * 153)
+    assert t["multi"]["paper_time_to_target_s_ratio_vs_none"] == ""  # the paper gives none
     # figures, table and page
     for png in ("fig6_return.png", "fig7_success.png", "fig8_convergence_time.png"):
         assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -255,6 +293,7 @@ def test_report_end_to_end(comparison, capsys):
     assert "353 ± " in md and "(2/3 †)" in md                      # none convergence flagged
     assert "none: only 2 of 3 seeds reached convergence" in md
     assert "not converged | runs/none-seed2 | the moving average leaves the band" in md
+    assert "median ratio, 95% CI (unreached = beyond the run)" in md and "beyond the run)" in md
     assert md.count("| none | ") == 3                              # one line per run
     assert not list(out.glob(".*.tmp*"))                           # atomic writes left nothing
 

@@ -226,6 +226,50 @@ def ratio(numerator: float | None, denominator: float | None) -> float | None:
     return numerator / denominator
 
 
+def median_ratio_ci(numerator, denominator, confidence: float = 0.95, draws: int = 10000,
+                    seed: int = 0) -> tuple[float, float, float] | None:
+    """Ratio of the medians of two conditions' per-seed values, with a seed-bootstrap interval.
+
+    A seed that never reached the criterion (NaN) counts as beyond the run (+inf), so a
+    condition that fails in some seeds is not flattered by leaving them out: its median is
+    infinite when half or more of its seeds failed. The interval resamples the seeds of
+    each condition with replacement (``draws`` times, a fixed ``seed``: the same numbers on
+    every run of the report) and takes the percentiles of the ratio of the medians.
+
+    Args:
+        numerator, denominator: (seeds,) values (episodes, s), NaN where not reached.
+        confidence: coverage of the interval, in (0, 1).
+
+    Returns:
+        (ratio, low, high), each possibly inf (numerator median beyond the run) or 0
+        (denominator beyond it); None when a condition has no seeds or both medians are
+        beyond the run.
+    """
+    if not 0 < confidence < 1:
+        raise ValueError(f"confidence must be in (0, 1), got {confidence}")
+    a = np.asarray(numerator, dtype=float)
+    b = np.asarray(denominator, dtype=float)
+    if a.size == 0 or b.size == 0:
+        return None
+    a, b = (np.where(np.isnan(x), np.inf, x) for x in (a, b))
+
+    def quotient(ma, mb):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(np.isinf(ma) & np.isinf(mb), np.nan, ma / mb)
+
+    point = float(quotient(np.median(a), np.median(b)))
+    if math.isnan(point):
+        return None
+    rng = np.random.default_rng(seed)
+    ma = np.median(a[rng.integers(0, a.size, (draws, a.size))], axis=1)
+    mb = np.median(b[rng.integers(0, b.size, (draws, b.size))], axis=1)
+    q = quotient(ma, mb)
+    q = q[~np.isnan(q)]             # draws where both medians are beyond the run say nothing
+    tail = (1 - confidence) / 2 * 100
+    low, high = np.percentile(q, [tail, 100 - tail], method="lower") if q.size else (math.nan,) * 2
+    return point, float(low), float(high)
+
+
 def condition_ratios(means: Mapping[str, float | None],
                      pairs: Iterable[tuple[str, str]] = RATIO_PAIRS) -> dict[tuple[str, str], float | None]:
     """Ratios between per-condition means, e.g. episodes to convergence multi / none.

@@ -29,7 +29,8 @@ def _csv_num(x: float | None) -> str:
     return "" if x is None or not math.isfinite(x) else f"{x:.10g}"
 
 
-_DIGITS = {"episodes_to_target": 0, "convergence_episode": 0, "convergence_time_s": 0,
+_DIGITS = {"episodes_to_target": 0, "time_to_target_s": 0, "convergence_episode": 0,
+           "convergence_time_s": 0,
            "max_avg_success": 3, "final_eval_success": 3}
 
 
@@ -50,7 +51,7 @@ def summary_rows(report: Report) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the human-readable per-condition table (strings)."""
     t = report.target
     header = ["condition", "seeds", "episodes compared", f"episodes to success {t:g}",
-              "episodes to convergence", "time to convergence, s", "max average success",
+              f"time to success {t:g}, s", "episodes to convergence", "time to convergence, s", "max average success",
               "final evaluation success", f"paper: to {TARGET_SUCCESS:g}", "paper: convergence",
               "paper: time, s", "paper: max success"]
     rows = []
@@ -61,6 +62,7 @@ def summary_rows(report: Report) -> tuple[list[str], list[list[str]]]:
             CONDITION_NAMES[c] + f" ({c})", str(s.seeds),
             f"1-{s.episodes}" + (" (common range)" if s.truncated else ""),
             _cell(s.episodes_to_target, "episodes_to_target"),
+            _cell(s.time_to_target_s, "time_to_target_s"),
             _cell(s.convergence_episode, "convergence_episode"),
             _cell(s.convergence_time_s, "convergence_time_s"),
             _cell(s.max_avg_success, "max_avg_success", count=False),
@@ -70,8 +72,11 @@ def summary_rows(report: Report) -> tuple[list[str], list[list[str]]]:
 
 
 def ratio_rows(report: Report) -> tuple[list[str], list[list[str]]]:
-    """Header and rows of the ratio table: quantity, ratio, ours, the paper's, remarks."""
-    header = ["quantity", "ratio", "this comparison", "paper", "remarks"]
+    """Header and rows of the ratio table: quantity, ratio, ours (of the means), ours (of the
+    medians, unreached seeds beyond the run, with its 95% bootstrap interval), the paper's,
+    remarks."""
+    header = ["quantity", "ratio", "this comparison (means)",
+              "median ratio, 95% CI (unreached = beyond the run)", "paper", "remarks"]
     rows = []
     for q in RATIO_QUANTITIES:
         for pair in RATIO_PAIRS:
@@ -79,14 +84,32 @@ def ratio_rows(report: Report) -> tuple[list[str], list[list[str]]]:
             paper, quoted = paper_ratio(q, pair)
             if q == "episodes_to_target" and not math.isclose(report.target, TARGET_SUCCESS):
                 paper_text = f"({TARGET_SUCCESS:g} only)"
+            elif paper is None:
+                paper_text = "n/a"
             else:
                 paper_text = f"{paper:.2f}" + ("" if quoted else " (derived)")
             note = ratio_note(report, q, pair)
             name = QUANTITY_NAMES[q] + (f" {report.target:g}" if q == "episodes_to_target" else "")
             rows.append([name, f"{pair[0]}/{pair[1]}",
                          "n/a" if ours is None else f"{ours:.2f}" + (" †" if note else ""),
+                         _median_ratio_text(report.median_ratios.get(q, {}).get(pair)),
                          paper_text, note])
     return header, rows
+
+
+def _ratio_num(x: float) -> str:
+    return "beyond the run" if math.isinf(x) else f"{x:.2f}"
+
+
+def _median_ratio_text(m: tuple[float, float, float] | None) -> str:
+    """"1.32 (0.87 to beyond the run)"; "n/a" when not available."""
+    if m is None:
+        return "n/a"
+    r, lo, hi = m
+    text = "beyond the run" if math.isinf(r) else f"{r:.2f}"
+    if not (math.isnan(lo) or math.isnan(hi)):
+        text += f" ({_ratio_num(lo)} to {_ratio_num(hi)})"
+    return text
 
 
 def run_rows(report: Report) -> tuple[list[str], list[list[str]]]:
@@ -117,7 +140,7 @@ def run_rows(report: Report) -> tuple[list[str], list[list[str]]]:
 def csv_table(report: Report) -> str:
     """``table.csv``: one row per condition, plain numbers (empty = not available)."""
     cols = ["condition", "seeds", "episodes_compared", "target", "window"]
-    for q in ("episodes_to_target", "convergence_episode", "convergence_time_s"):
+    for q in ("episodes_to_target", "time_to_target_s", "convergence_episode", "convergence_time_s"):
         cols += [f"{q}_mean", f"{q}_ci95", f"{q}_seeds_reached"]
     for q in ("max_avg_success", "final_eval_success"):
         cols += [f"{q}_mean", f"{q}_ci95", f"{q}_seeds"]
@@ -125,14 +148,16 @@ def csv_table(report: Report) -> str:
                                     "convergence_time_s", "max_avg_success")]
     for q in RATIO_QUANTITIES:
         for den in ("none", "single"):
-            cols += [f"{q}_ratio_vs_{den}", f"paper_{q}_ratio_vs_{den}"]
+            cols += [f"{q}_ratio_vs_{den}", f"{q}_median_ratio_vs_{den}",
+                     f"{q}_median_ratio_vs_{den}_low", f"{q}_median_ratio_vs_{den}_high",
+                     f"paper_{q}_ratio_vs_{den}"]
     text = io.StringIO()
     w = csv.writer(text, lineterminator="\n")
     w.writerow(cols)
     for c, s in report.conditions.items():
         row = [c, s.seeds, s.episodes, f"{report.target:g}", report.window]
-        for q in ("episodes_to_target", "convergence_episode", "convergence_time_s",
-                  "max_avg_success", "final_eval_success"):
+        for q in ("episodes_to_target", "time_to_target_s", "convergence_episode",
+                  "convergence_time_s", "max_avg_success", "final_eval_success"):
             st = s.stat(q)
             row += [_csv_num(st.mean), _csv_num(st.ci95), st.reached]
         row += [_csv_num(paper_value(report, q, c)) for q in (
@@ -144,9 +169,12 @@ def csv_table(report: Report) -> str:
                     paper = paper_ratio(q, pair)[0]
                     if q == "episodes_to_target" and not math.isclose(report.target, TARGET_SUCCESS):
                         paper = None
-                    row += [_csv_num(report.ratios[q][pair]), _csv_num(paper)]
+                    med = report.median_ratios.get(q, {}).get(pair) or (None,) * 3
+                    row += [_csv_num(report.ratios[q][pair]),
+                            *(("inf" if x is not None and math.isinf(x) else _csv_num(x)) for x in med),
+                            _csv_num(paper)]
                 else:
-                    row += ["", ""]
+                    row += [""] * 5
         w.writerow(row)
     return text.getvalue()
 
@@ -194,6 +222,13 @@ def definitions(report: Report) -> list[str]:
         "convergence); not available when a condition has no seed that reached the criterion. "
         "Paper values marked (derived) are not quoted in its text but computed from its "
         "per-condition values.",
+        "Median ratios: the quotient of the two conditions' medians over all their seeds, a seed "
+        "that never reached the criterion counted as beyond the run (so a condition's median "
+        "is 'beyond the run' when half its seeds or more failed), with the 2.5-97.5 percentile "
+        "interval of the same quotient over 10,000 bootstrap resamplings of each condition's "
+        "seeds (fixed seed). It does not drop failed seeds, as the ratio of the means must.",
+        "Time to success: the run's cumulative wall time (training, evaluations and checkpoints) "
+        "at the episode of the target; wall times are of whatever machine and load the runs had.",
         "Runs of one condition with different lengths are compared over their common episode "
         "range (1 to the shortest run's length); the longer runs' later episodes are not used.",
     ]

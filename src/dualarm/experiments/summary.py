@@ -13,13 +13,15 @@ import numpy as np
 
 from dualarm.errors import InputError
 from dualarm.task import CONDITIONS, TARGET_SUCCESS
-from dualarm.experiments.metrics import (Convergence, condition_ratios, convergence,
-                                         episodes_to_target, max_average, mean_ci, trailing_mean)
+from dualarm.experiments.metrics import (RATIO_PAIRS, Convergence, condition_ratios, convergence,
+                                         episodes_to_target, max_average, mean_ci,
+                                         median_ratio_ci, trailing_mean)
 from dualarm.experiments.run_logs import Run, find_run_dirs, load_run
 
 
 #: The quantities whose ratios between conditions the paper quotes.
-RATIO_QUANTITIES = ("episodes_to_target", "convergence_episode", "convergence_time_s")
+RATIO_QUANTITIES = ("episodes_to_target", "time_to_target_s", "convergence_episode",
+                    "convergence_time_s")
 
 #: The paper's values (Section 3.2.2, Figs. 6-8; 10,000 training episodes per condition).
 PAPER = {
@@ -27,6 +29,7 @@ PAPER = {
     "convergence_episode": {"multi": 4000, "single": 5600, "none": 7000},
     "convergence_time_s": {"multi": 48590, "single": 75830, "none": 96393},
     "max_avg_success": {"multi": 0.98, "single": 0.94, "none": 0.98},
+    "time_to_target_s": {},                                                # not given
 }
 
 #: Ratios the text quotes; the others shown are derived from the values in ``PAPER``.
@@ -42,6 +45,7 @@ PAPER_QUOTED_RATIOS = {
 
 QUANTITY_NAMES = {
     "episodes_to_target": "episodes to target success",
+    "time_to_target_s": "time to target success",
     "convergence_episode": "episodes to convergence",
     "convergence_time_s": "time to convergence",
     "max_avg_success": "max average success",
@@ -93,8 +97,8 @@ class ConditionSummary:
         ma_return: (seeds, episodes) moving average of the return, per seed.
         ma_success: (seeds, episodes) moving average of the success, per seed.
         convergence: per seed, the convergence of its return curve.
-        episodes_to_target, convergence_episode, convergence_time_s (s), max_avg_success,
-        final_eval_success: per-seed quantities (see docs/report.md).
+        episodes_to_target, time_to_target_s (s), convergence_episode, convergence_time_s
+        (s), max_avg_success, final_eval_success: per-seed quantities (see docs/report.md).
         eval_episode: (k,) evaluation episodes common to all runs, within the common range.
         eval_success: (seeds, k) evaluation success rates at those episodes.
     """
@@ -106,6 +110,7 @@ class ConditionSummary:
     ma_success: np.ndarray
     convergence: list[Convergence]
     episodes_to_target: SeedStat
+    time_to_target_s: SeedStat
     convergence_episode: SeedStat
     convergence_time_s: SeedStat
     max_avg_success: SeedStat
@@ -138,6 +143,9 @@ class Report:
         conditions: condition -> summary, in ``CONDITIONS`` (absent conditions left out).
         ratios: quantity (``RATIO_QUANTITIES``) -> (numerator, denominator) -> ratio of the
             per-condition means, or None when not available.
+        median_ratios: the same keys -> (ratio, low, high) of the per-condition medians with
+            unreached seeds counted as beyond the run, and its 95% seed-bootstrap interval
+            (``metrics.median_ratio_ci``), or None when not available.
         notes: remarks a reader must see (partial runs, truncation, flagged means).
     """
 
@@ -147,6 +155,8 @@ class Report:
     runs: list[Run]
     conditions: dict[str, ConditionSummary]
     ratios: dict[str, dict[tuple[str, str], float | None]]
+    median_ratios: dict[str, dict[tuple[str, str], tuple[float, float, float] | None]] = \
+        field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 
 
@@ -175,12 +185,14 @@ def summarize_condition(condition: str, runs: list[Run], window: int = 100,
                                        for r in runs)))
     eval_success = np.array([[r.eval_success[r.eval_episode == ep][-1] for ep in common]
                              for r in runs]).reshape(len(runs), len(common))
+    to_target = [_first_evaluation_at(r, n, target) if on_evals
+                 else episodes_to_target(r.success[:n], target, window) for r in runs]
     return ConditionSummary(
         condition=condition, runs=runs, episodes=n, ma_return=ma_return, ma_success=ma_success,
         convergence=conv,
-        episodes_to_target=SeedStat.of([_first_evaluation_at(r, n, target) if on_evals
-                                        else episodes_to_target(r.success[:n], target, window)
-                                        for r in runs]),
+        episodes_to_target=SeedStat.of(to_target),
+        time_to_target_s=SeedStat.of([None if e is None else float(r.wall_time_s[e - 1])
+                                      for r, e in zip(runs, to_target)]),
         convergence_episode=SeedStat.of([c.episode for c in conv]),
         convergence_time_s=SeedStat.of(conv_time),
         max_avg_success=SeedStat.of([float(np.max(r.eval_success[r.eval_episode <= n], initial=0.0))
@@ -266,6 +278,11 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
     ratios = {q: condition_ratios({c: (s.stat(q).mean if s.stat(q).reached else None)
                                    for c, s in conditions.items()})
               for q in RATIO_QUANTITIES}
+    median_ratios = {q: {(a, b): median_ratio_ci(conditions[a].stat(q).values,
+                                                 conditions[b].stat(q).values)
+                         if a in conditions and b in conditions else None
+                         for a, b in RATIO_PAIRS}
+                     for q in RATIO_QUANTITIES}
     for s in conditions.values():
         for q in ("episodes_to_target", "convergence_episode"):
             st = s.stat(q)
@@ -274,7 +291,7 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
                              f"{'the target' if q == 'episodes_to_target' else 'convergence'}; "
                              "its mean and ratios are over those seeds (marked †)")
     return Report(source=root, window=int(window), target=float(target), runs=runs,
-                  conditions=conditions, ratios=ratios, notes=notes)
+                  conditions=conditions, ratios=ratios, median_ratios=median_ratios, notes=notes)
 
 
 def relative_to_root(path: Path, root: Path) -> str:
@@ -287,11 +304,14 @@ def relative_to_root(path: Path, root: Path) -> str:
 
 def paper_ratio(quantity: str, pair: tuple[str, str]) -> tuple[float, bool]:
     """The paper's ratio of ``quantity`` for ``pair`` and whether its text quotes it (else it
-    is derived from the paper's per-condition values)."""
+    is derived from the paper's per-condition values); (None, False) where the paper gives
+    neither."""
     quoted = PAPER_QUOTED_RATIOS.get((quantity, pair))
     if quoted is not None:
         return quoted, True
     values = PAPER[quantity]
+    if pair[0] not in values or pair[1] not in values:
+        return None, False
     return values[pair[0]] / values[pair[1]], False
 
 
