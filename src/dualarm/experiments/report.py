@@ -51,8 +51,8 @@ def summary_rows(report: Report) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the human-readable per-condition table (strings)."""
     t = report.target
     header = ["condition", "seeds", "episodes compared", f"episodes to success {t:g}",
-              f"time to success {t:g}, s", "episodes to convergence", "time to convergence, s", "max average success",
-              "final evaluation success", f"paper: to {TARGET_SUCCESS:g}", "paper: convergence",
+              f"time to success {t:g}, s", "episodes to convergence", "time to convergence, s",
+              "max average success", "final evaluation success", f"paper: to {TARGET_SUCCESS:g}", "paper: convergence",
               "paper: time, s", "paper: max success"]
     rows = []
     for c, s in report.conditions.items():
@@ -92,7 +92,7 @@ def ratio_rows(report: Report) -> tuple[list[str], list[list[str]]]:
             name = QUANTITY_NAMES[q] + (f" {report.target:g}" if q == "episodes_to_target" else "")
             rows.append([name, f"{pair[0]}/{pair[1]}",
                          "n/a" if ours is None else f"{ours:.2f}" + (" †" if note else ""),
-                         _median_ratio_text(report.median_ratios.get(q, {}).get(pair)),
+                         _median_ratio_text(report.median_ratios[q][pair]),
                          paper_text, note])
     return header, rows
 
@@ -106,7 +106,7 @@ def _median_ratio_text(m: tuple[float, float, float] | None) -> str:
     if m is None:
         return "n/a"
     r, lo, hi = m
-    text = "beyond the run" if math.isinf(r) else f"{r:.2f}"
+    text = _ratio_num(r)
     if not (math.isnan(lo) or math.isnan(hi)):
         text += f" ({_ratio_num(lo)} to {_ratio_num(hi)})"
     return text
@@ -169,7 +169,7 @@ def csv_table(report: Report) -> str:
                     paper = paper_ratio(q, pair)[0]
                     if q == "episodes_to_target" and not math.isclose(report.target, TARGET_SUCCESS):
                         paper = None
-                    med = report.median_ratios.get(q, {}).get(pair) or (None,) * 3
+                    med = report.median_ratios[q][pair] or (None,) * 3
                     row += [_csv_num(report.ratios[q][pair]),
                             *(("inf" if x is not None and math.isinf(x) else _csv_num(x)) for x in med),
                             _csv_num(paper)]
