@@ -38,7 +38,9 @@ class TaskConfig:
         reach_funnel_height: the highest the funnel's goal sits above the box centre.
         max_episode_steps: steps before truncation.
         substeps: physics steps per control step (control period = substeps * timestep).
-        max_cartesian_step: grip-site displacement per step at action 1 (paper's gym: 5 cm).
+        max_cartesian_step: the target's lead over the grip site per step at action 1 (the
+            paper's gym: 5 cm; the weld covers about 40 % of it per step, so a full action
+            moves the grip 2 cm per step, docs/env.md).
         max_joint_step: joint-target change per step at action 1 in joint mode (rad).
         min_grip_height: lowest grip-site height above the table top (keeps fingers off it).
         grip_x_range, grip_y_range: the box of world x and y (m) that Cartesian grip-site

@@ -174,21 +174,34 @@ class DADDPG:
             return q
         return (q * self._head_weights).sum(-1, keepdim=True)
 
-    def td_target(self, r: torch.Tensor, not_done: torch.Tensor, o2: torch.Tensor) -> torch.Tensor:
+    def td_target(self, r: torch.Tensor, not_done: torch.Tensor, o2: torch.Tensor,
+                  o: torch.Tensor | None = None, a: torch.Tensor | None = None) -> torch.Tensor:
         """Eq. 13's y_i = r_i + gamma Q'_i(s', mu'_i(s'_i)), (A, B, H), without gradients.
 
         r (A, B, H) scaled rewards, not_done (1, B, 1), o2 (A, B, O) normalised next
         observations. With twin critics Q' is the smaller of the two target critics, with
-        ``target_noise`` the target actions are smoothed (TD3), with ``q_clip`` y is clipped.
+        ``target_noise`` the target actions are smoothed (TD3), with ``advantage_learning``
+        alpha > 0 the target loses alpha (Q'(s, mu'(s)) - Q'(s, a)) for the normalised
+        observations o (A, B, O) and the actions taken a (A, B, U), and with ``q_clip`` y is
+        clipped last.
         """
         c = self.config
         a2 = self.actor_target(o2)
         if c.target_noise > 0:
             eps = (torch.randn(a2.shape, generator=self.torch_rng) * c.target_noise).clamp(-0.5, 0.5)
             a2 = (a2 + eps).clamp(-1.0, 1.0)
-        q2 = self._per_agent(self.critic_target(self._critic_input(o2, a2 * self.action_mask)))
-        y = r + c.gamma * not_done * q2.min(dim=0).values               # min over twins (if any)
+        y = r + c.gamma * not_done * self._target_q(o2, a2)
+        if c.advantage_learning > 0:
+            if o is None or a is None:
+                raise ValueError("advantage_learning needs the observations and actions taken")
+            gap = self._target_q(o, self.actor_target(o)) - self._target_q(o, a)
+            y = y - c.advantage_learning * gap
         return y.clamp(-c.q_clip, c.q_clip) if c.q_clip > 0 else y
+
+    def _target_q(self, o: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        """Q'_i(s, a_i) (A, B, H) of the target critics, the smaller twin (if any)."""
+        q = self._per_agent(self.critic_target(self._critic_input(o, actions * self.action_mask)))
+        return q.min(dim=0).values
 
     def actor_loss(self, o: torch.Tensor, q_taken: torch.Tensor, a_taken: torch.Tensor,
                    demo_rows: int = 0, penalty_weight: torch.Tensor | None = None) -> torch.Tensor:
@@ -249,7 +262,7 @@ class DADDPG:
         not_done = (1.0 - batch["done"]).view(1, -1, 1)            # (1, B, 1)
 
         with torch.no_grad():
-            y = self.td_target(r, not_done, o2)
+            y = self.td_target(r, not_done, o2, o, a_taken)
         q = self._per_agent(self.critic(self._critic_input(o, a_taken)))
         critic_loss = ((y - q) ** 2).mean(dim=(2, 3)).sum()       # per head and sample, summed over critics
         # The actor climbs the critic as it is before this step's critic update.
@@ -290,13 +303,15 @@ class DADDPG:
 
         Critic: target actor and target critic forward, critic forward and backward.
         Actor: actor forward and backward, the first twins' forward and input-gradient backward
-        (weight gradients of the critic are not computed in the actor pass).
+        (weight gradients of the critic are not computed in the actor pass). Advantage
+        learning adds a target actor and two target critic forwards.
         """
         b = batch_size or self.config.batch_size
         fa, fc = self.actor.flops_per_sample(), self.critic.flops_per_sample()  # all stacks
         # target actor and critic; critic forward and backward; actor forward and backward;
         # the first twins' forward and input gradient in the actor pass
-        return b * (fa + fc + 3 * fc + 3 * fa + 2 * fc // self.critics_per_agent)
+        extra = fa + 2 * fc if self.config.advantage_learning > 0 else 0   # Q'(s, mu'(s)), Q'(s, a)
+        return b * (fa + fc + 3 * fc + 3 * fa + 2 * fc // self.critics_per_agent + extra)
 
     # -------------------------------------------------------- saving/loading
     _PARTS = ("actor", "critic", "actor_target", "critic_target", "actor_opt", "critic_opt",
