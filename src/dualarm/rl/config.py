@@ -8,9 +8,9 @@ from dualarm.errors import InputError
 from dualarm.typed_fields import check_field_types
 
 
-#: Options removed from DADDPGConfig (issue 17; the commit before their removal has them), with
-#: the one value a file may still give: old run directories keep loading and resuming.
-REMOVED_FIELDS = {"noise": "gaussian", "n_step": 1, "value_rescale": False}
+#: Options removed from DADDPGConfig (issue 17, round 14; docs/training.md names the last commit
+#: that has each), with the one value a file may still give: old run directories keep loading.
+REMOVED_FIELDS = {"noise": "gaussian", "n_step": 1, "value_rescale": False, "advantage_learning": 0.0}
 
 
 def _upgrade(d: dict, where: str) -> dict:
@@ -26,7 +26,7 @@ def _upgrade(d: dict, where: str) -> dict:
     d.pop("ou_theta", None)
     for name, value in REMOVED_FIELDS.items():
         if name in d:
-            if d[name] != value or type(d[name]) is not type(value):
+            if d[name] != value or isinstance(d[name], bool) != isinstance(value, bool):
                 raise InputError(f"{where}: {name}: {d[name]!r} is no longer an option (only "
                                  f"{value!r}; docs/training.md names the commit that had it)")
             del d[name]
@@ -94,12 +94,6 @@ class DADDPGConfig:
     """Two critics per agent, targets from their minimum (TD3's fix of over-estimation)."""
     target_noise: float = 0.0
     """Std of clipped noise on the target actions of Eq. 13 (TD3's smoothing; 0 = off)."""
-    advantage_learning: float = 0.0
-    """Baird's advantage learning, alpha in [0, 1) (Bellemare et al. 2016, "Increasing the
-    action gap"): the critic's target becomes y - alpha (Q'(s, mu'(s)) - Q'(s, a)), which keeps
-    the greedy policy and divides every action's advantage by 1 - alpha. For small control
-    steps, where one step's choice changes the return by less than the critic's error (the
-    reach, docs/learning-runs.md, round 14). 0 = off, Eq. 13 as printed."""
     critic_layer_norm: bool = False
     """Layer normalisation in every hidden layer of the critics (Ba et al. 2016): bounds the
     values a critic extrapolates to off the data, which an actor otherwise saturates towards
@@ -132,7 +126,7 @@ class DADDPGConfig:
             "grip_hold_eps": 0 <= self.grip_hold_eps <= 1, "grip_hold_steps": self.grip_hold_steps >= 1,
             "action_l2": self.action_l2 >= 0, "obs_clip": self.obs_clip > 0,
             "grad_clip": self.grad_clip >= 0, "reward_scale": self.reward_scale > 0,
-            "q_clip": self.q_clip >= 0, "advantage_learning": 0 <= self.advantage_learning < 1, "target_noise": self.target_noise >= 0, "updates_per_step": self.updates_per_step >= 0,
+            "q_clip": self.q_clip >= 0, "target_noise": self.target_noise >= 0, "updates_per_step": self.updates_per_step >= 0,
             "demo_batch_size": self.demo_batch_size >= 0, "bc_weight": self.bc_weight >= 0,
             "warmup_steps": self.warmup_steps >= 0, "eval_actor": self.eval_actor in ("online", "target"),
         }

@@ -174,16 +174,12 @@ class DADDPG:
             return q
         return (q * self._head_weights).sum(-1, keepdim=True)
 
-    def td_target(self, r: torch.Tensor, not_done: torch.Tensor, o2: torch.Tensor,
-                  o: torch.Tensor | None = None, a: torch.Tensor | None = None) -> torch.Tensor:
+    def td_target(self, r: torch.Tensor, not_done: torch.Tensor, o2: torch.Tensor) -> torch.Tensor:
         """Eq. 13's y_i = r_i + gamma Q'_i(s', mu'_i(s'_i)), (A, B, H), without gradients.
 
         r (A, B, H) scaled rewards, not_done (1, B, 1), o2 (A, B, O) normalised next
         observations. With twin critics Q' is the smaller of the two target critics, with
-        ``target_noise`` the target actions are smoothed (TD3), with ``advantage_learning``
-        alpha > 0 the target loses alpha (Q'(s, mu'(s)) - Q'(s, a)) for the normalised
-        observations o (A, B, O) and the actions taken a (A, B, U), and with ``q_clip`` y is
-        clipped last.
+        ``target_noise`` the target actions are smoothed (TD3), with ``q_clip`` y is clipped.
         """
         c = self.config
         a2 = self.actor_target(o2)
@@ -191,11 +187,6 @@ class DADDPG:
             eps = (torch.randn(a2.shape, generator=self.torch_rng) * c.target_noise).clamp(-0.5, 0.5)
             a2 = (a2 + eps).clamp(-1.0, 1.0)
         y = r + c.gamma * not_done * self._target_q(o2, a2)
-        if c.advantage_learning > 0:
-            if o is None or a is None:
-                raise ValueError("advantage_learning needs the observations and actions taken")
-            gap = self._target_q(o, self.actor_target(o)) - self._target_q(o, a)
-            y = y - c.advantage_learning * gap
         return y.clamp(-c.q_clip, c.q_clip) if c.q_clip > 0 else y
 
     def _target_q(self, o: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
@@ -262,7 +253,7 @@ class DADDPG:
         not_done = (1.0 - batch["done"]).view(1, -1, 1)            # (1, B, 1)
 
         with torch.no_grad():
-            y = self.td_target(r, not_done, o2, o, a_taken)
+            y = self.td_target(r, not_done, o2)
         q = self._per_agent(self.critic(self._critic_input(o, a_taken)))
         critic_loss = ((y - q) ** 2).mean(dim=(2, 3)).sum()       # per head and sample, summed over critics
         # The actor climbs the critic as it is before this step's critic update.
@@ -303,15 +294,13 @@ class DADDPG:
 
         Critic: target actor and target critic forward, critic forward and backward.
         Actor: actor forward and backward, the first twins' forward and input-gradient backward
-        (weight gradients of the critic are not computed in the actor pass). Advantage
-        learning adds a target actor and two target critic forwards.
+        (weight gradients of the critic are not computed in the actor pass).
         """
         b = batch_size or self.config.batch_size
         fa, fc = self.actor.flops_per_sample(), self.critic.flops_per_sample()  # all stacks
         # target actor and critic; critic forward and backward; actor forward and backward;
         # the first twins' forward and input gradient in the actor pass
-        extra = fa + 2 * fc if self.config.advantage_learning > 0 else 0   # Q'(s, mu'(s)), Q'(s, a)
-        return b * (fa + fc + 3 * fc + 3 * fa + 2 * fc // self.critics_per_agent + extra)
+        return b * (fa + fc + 3 * fc + 3 * fa + 2 * fc // self.critics_per_agent)
 
     # -------------------------------------------------------- saving/loading
     _PARTS = ("actor", "critic", "actor_target", "critic_target", "actor_opt", "critic_opt",
