@@ -80,6 +80,23 @@ def test_eval_with_the_target_actors_acts_with_the_latest_checkpoints_averages(t
     out = capsys.readouterr().out
     assert "latest.pt" in out and "target actors" in out and "/3)" in out
 
+    # a run whose own policy is the target actors acts with them from every checkpoint
+    # unless told otherwise; the online actors then come from the latest checkpoint
+    from dualarm.training.policy import load_actors, load_policy
+    (run_dir / "config.yaml").write_text((run_dir / "config.yaml").read_text()
+                                         .replace("eval_actor: online", "eval_actor: target"))
+    for which in ("latest", "best"):
+        _, own, info = load_actors(run_dir, which)
+        assert info["actors"] == "target"
+    _, own, _ = load_policy(run_dir, "latest")
+    assert np.allclose(own.act(obs), target.act(obs), atol=1e-6)
+    _, online, info = load_actors(run_dir, "best", "online")
+    assert info["checkpoint"].name == "latest.pt" and info["actors"] == "online"
+    own_actors = learner.actor(normalized.transpose(0, 1)).transpose(0, 1)
+    assert np.allclose(online.act(obs), own_actors.detach().numpy() * learner.action_mask[:, 0].numpy(),
+                       atol=1e-6)
+    assert not np.allclose(online.act(obs), target.act(obs), atol=1e-4)
+
 
 def test_eval_from_later_starts_puts_both_arms_there(run_dir, capsys, monkeypatch):
     """--start align: every evaluation episode begins with both arms holding their boxes."""

@@ -90,6 +90,36 @@ def test_with_twin_critics_the_actor_climbs_the_first_twin_only():
         torch.testing.assert_close(pa, pb)
 
 
+def test_twin_min_weight_mixes_the_minimum_and_the_mean_of_the_target_twins():
+    """WD3's target: r + gamma (beta min(Q'1, Q'2) + (1 - beta) mean), per agent, by hand."""
+    batch = random_batch()
+    r = batch["rew"].T.unsqueeze(-1)                       # (A, B, 1)
+    not_done = (1 - batch["done"]).view(1, -1, 1)
+    targets = {}
+    for beta in (1.0, 0.5, 0.0):
+        agent = small_agent(twin_critics=True, twin_min_weight=beta)
+        with torch.no_grad():                              # twins far apart, so min != mean
+            for p in agent.critic_target.parameters():
+                p[2:] += 0.3
+        o2 = agent.normalizer.normalize(batch["next_obs"])
+        s2 = o2.reshape(8, -1)
+        y = agent.td_target(r, not_done, o2.transpose(0, 1))
+        for i in range(2):
+            with torch.no_grad():
+                a2 = agent_mlp(agent.actor_target, i, o2[:, i]) * agent.action_mask[i, 0]
+                q1, q2 = (agent_mlp(agent.critic_target, t * 2 + i, torch.cat([s2, a2], -1))[:, 0]
+                          for t in (0, 1))
+            mix = beta * torch.minimum(q1, q2) + (1 - beta) * (q1 + q2) / 2
+            expected = batch["rew"][:, i] + agent.config.gamma * (1 - batch["done"]) * mix
+            torch.testing.assert_close(y[i, :, 0], expected)
+        targets[beta] = y
+    assert (targets[0.0] > targets[1.0] + 1e-4).any() and (targets[0.0] >= targets[1.0] - 1e-6).all()
+    with pytest.raises(ValueError, match="twin_min_weight"):
+        DADDPGConfig(twin_min_weight=0.5)                  # needs twin critics
+    with pytest.raises(ValueError, match="twin_min_weight"):
+        DADDPGConfig(twin_critics=True, twin_min_weight=1.5)
+
+
 def test_update_follows_equations_13_to_15():
     agent = small_agent()
     agent.normalizer.update(np.random.default_rng(0).normal(size=(50, 2, 7)))
@@ -269,6 +299,9 @@ def test_the_deterministic_policy_acts_with_eval_actor_and_exploration_with_the_
     loaded = small_agent(eval_actor=eval_actor)
     loaded.load_policy_state_dict(agent.policy_state_dict())
     np.testing.assert_allclose(loaded.act(obs), evaluated, atol=1e-6)
+    whole = small_agent(eval_actor=eval_actor)              # a latest checkpoint's learner state
+    whole.load_policy_state_dict(agent.state_dict())
+    np.testing.assert_allclose(whole.act(obs), evaluated, atol=1e-6)
 
 
 def test_config_validation_names_the_field():

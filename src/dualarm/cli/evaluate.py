@@ -12,16 +12,13 @@ def cmd_eval(args: argparse.Namespace) -> int:
     """Success rate and mean return of a run's policy on the fixed evaluation episodes."""
     from dualarm.training.evaluation import evaluate
     from dualarm.training.loop import make_vector_env
-    from dualarm.training.policy import load_policy, load_target_policy
+    from dualarm.training.policy import load_actors
 
-    if args.actor == "target":
-        config, agent, info = load_target_policy(args.run)
-    else:
-        config, agent, info = load_policy(args.run, args.checkpoint)
+    config, agent, info = load_actors(args.run, args.checkpoint, args.actor)
     vec = make_vector_env(config, min(config.num_envs, args.episodes), start=SUBTASKS.index(args.start))
     result = evaluate(lambda o: agent.act(o), vec, args.episodes)
     start = "" if args.start == "reach" else f", both arms starting at {args.start}"
-    actors = ", target actors" if args.actor == "target" else ""
+    actors = ", target actors" if info["actors"] == "target" else ""
     print(f"{info['checkpoint']} (after {info['episodes']} training episodes{actors}), "
           f"{args.episodes} evaluation episodes{start}:")
     print(f"  success rate  {result.success_rate:.3f} ({int(result.success.sum())}/{args.episodes})")
@@ -40,8 +37,9 @@ def add_eval_command(sub) -> None:
                     help="the sub-task both arms start at: reach (the normal reset, default), "
                          "grasp (at the boxes, fingers open) or align (holding them): how "
                          "well each link of the task is learned")
-    ev.add_argument("--actor", choices=("online", "target"), default="online",
-                    help="the actors (default) or the target actors, their Polyak averages "
-                         "(Eq. 15), which act more steadily late in a run; target reads the "
-                         "latest checkpoint, whatever --checkpoint says")
+    ev.add_argument("--actor", choices=("online", "target"), default=None,
+                    help="the actors or the target actors, their Polyak averages (Eq. 15), "
+                         "which act more steadily late in a run. Default: the run's own "
+                         "(algo.eval_actor), from --checkpoint; the other ones are read "
+                         "from the latest checkpoint, whatever --checkpoint says")
     ev.set_defaults(func=cmd_eval)

@@ -94,6 +94,11 @@ class DADDPGConfig:
     """Two critics per agent, targets from their minimum (TD3's fix of over-estimation)."""
     target_noise: float = 0.0
     """Std of clipped noise on the target actions of Eq. 13 (TD3's smoothing; 0 = off)."""
+    twin_min_weight: float = 1.0
+    """beta in [0, 1]: with twin critics the target is beta min(Q'1, Q'2) + (1 - beta) of their
+    mean (WD3, He and Hou 2020): less of the minimum's under-estimation, which compounds
+    over the steps between a success and the reset (docs/learning-runs.md, rounds 11, 15).
+    1 = TD3's minimum."""
     critic_layer_norm: bool = False
     """Layer normalisation in every hidden layer of the critics (Ba et al. 2016): bounds the
     values a critic extrapolates to off the data, which an actor otherwise saturates towards
@@ -126,7 +131,9 @@ class DADDPGConfig:
             "grip_hold_eps": 0 <= self.grip_hold_eps <= 1, "grip_hold_steps": self.grip_hold_steps >= 1,
             "action_l2": self.action_l2 >= 0, "obs_clip": self.obs_clip > 0,
             "grad_clip": self.grad_clip >= 0, "reward_scale": self.reward_scale > 0,
-            "q_clip": self.q_clip >= 0, "target_noise": self.target_noise >= 0, "updates_per_step": self.updates_per_step >= 0,
+            "q_clip": self.q_clip >= 0, "target_noise": self.target_noise >= 0,
+            "twin_min_weight": 0 <= self.twin_min_weight <= 1 and (self.twin_critics or self.twin_min_weight == 1),
+            "updates_per_step": self.updates_per_step >= 0,
             "demo_batch_size": self.demo_batch_size >= 0, "bc_weight": self.bc_weight >= 0,
             "warmup_steps": self.warmup_steps >= 0, "eval_actor": self.eval_actor in ("online", "target"),
         }

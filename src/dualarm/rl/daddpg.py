@@ -178,7 +178,8 @@ class DADDPG:
         """Eq. 13's y_i = r_i + gamma Q'_i(s', mu'_i(s'_i)), (A, B, H), without gradients.
 
         r (A, B, H) scaled rewards, not_done (1, B, 1), o2 (A, B, O) normalised next
-        observations. With twin critics Q' is the smaller of the two target critics, with
+        observations. With twin critics Q' is the smaller of the two target critics (or with
+        ``twin_min_weight`` beta, beta min + (1 - beta) mean), with
         ``target_noise`` the target actions are smoothed (TD3), with ``q_clip`` y is clipped.
         """
         c = self.config
@@ -190,9 +191,12 @@ class DADDPG:
         return y.clamp(-c.q_clip, c.q_clip) if c.q_clip > 0 else y
 
     def _target_q(self, o: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
-        """Q'_i(s, a_i) (A, B, H) of the target critics, the smaller twin (if any)."""
+        """Q'_i(s, a_i) (A, B, H) of the target critics: the smaller twin, or with
+        ``twin_min_weight`` beta < 1 beta min + (1 - beta) mean (one critic: itself)."""
         q = self._per_agent(self.critic_target(self._critic_input(o, actions * self.action_mask)))
-        return q.min(dim=0).values
+        beta = self.config.twin_min_weight
+        low = q.min(dim=0).values
+        return low if beta == 1 else beta * low + (1 - beta) * q.mean(dim=0)
 
     def actor_loss(self, o: torch.Tensor, q_taken: torch.Tensor, a_taken: torch.Tensor,
                    demo_rows: int = 0, penalty_weight: torch.Tensor | None = None) -> torch.Tensor:
@@ -345,7 +349,10 @@ class DADDPG:
         return state
 
     def load_policy_state_dict(self, state: dict) -> None:
-        """Restore from ``policy_state_dict()``: its actors become both the online and the
-        target actors, so that the deterministic policy is the saved one either way."""
+        """Restore from ``policy_state_dict()``, or from a whole learner's ``state_dict()``
+        (whose actors for acting are the ones ``eval_actor`` names): they become both the
+        online and the target actors, so that the deterministic policy is the saved one."""
+        if self.config.eval_actor == "target" and "actor_target" in state:
+            state = {**state, "actor": state["actor_target"]}
         self._restore(state, self._POLICY_PARTS, "policy")
         self.actor_target.load_state_dict(self.actor.state_dict())

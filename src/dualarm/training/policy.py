@@ -55,6 +55,35 @@ def load_target_policy(run_dir: str | Path) -> tuple[TrainConfig, DADDPG, dict]:
     return config, agent, info
 
 
+def load_actors(run_dir: str | Path, which: str = "best",
+                actors: str | None = None) -> tuple[TrainConfig, DADDPG, dict]:
+    """The run's deterministic policy with the actors asked for.
+
+    Args:
+        run_dir: a run directory of ``dualarm train``.
+        which: "best" or "latest", as ``load_policy``'s.
+        actors: None for the run's own (``algo.eval_actor``, from ``which``); "online" or
+            "target" for those actors: where they are not the run's own, from the latest
+            checkpoint (a best-policy file holds the run's own actors alone).
+
+    Returns:
+        (config, learner, info) as ``load_policy``'s, plus info["actors"]: the actors acting.
+    """
+    if actors not in (None, "online", "target"):
+        raise InputError(f"actors must be online or target, got {actors!r}")
+    if actors is not None:
+        paths = RunPaths(run_dir)
+        own = TrainConfig.load(paths.config).algo.eval_actor if paths.config.exists() else None
+        if actors != own:
+            config, agent, info = load_learner(run_dir)
+            acting = (agent.actor_target if actors == "target" else agent.actor).state_dict()
+            agent.actor.load_state_dict(acting)
+            agent.actor_target.load_state_dict(acting)       # act() may read either
+            return config, agent, {**info, "actors": actors}
+    config, agent, info = load_policy(run_dir, which)
+    return config, agent, {**info, "actors": config.algo.eval_actor}
+
+
 def _load(run_dir: str | Path, which: str, whole: bool) -> tuple[TrainConfig, DADDPG, dict]:
     """Read the run's config and one checkpoint (once: a latest checkpoint holds the replay
     buffer too); restore the policy's parts, or with ``whole`` the whole learner."""
