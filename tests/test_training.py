@@ -219,18 +219,20 @@ def test_daddpg_learns_the_whole_task_without_demonstrations(tmp_path):
 
 
 def test_daddpg_with_demonstrations_learns_the_baxter_reach_to_80_percent(tmp_path):
-    """The issue's reach target, learned with the two options beyond the paper that it needs
-    (docs/training.md): the approach funnel in the distance term and 64 episodes of the
-    scripted expert in a demonstration buffer with Q-filtered behaviour cloning. Success is
-    both grippers within 2 cm of their boxes at the same step, on the 32 fixed evaluation
-    placements, deterministic policy; the run keeps the best evaluated policy, which is what
-    `dualarm eval` and `play` load. Measured with seed 0: 0.84 at 400 episodes, 0.875 at 480,
-    in under 3 minutes on one core (seed 2: 0.91 at 480; seed 1 only 0.375 at 560)."""
-    algo = DADDPGConfig(demo_batch_size=64, bc_weight=30.0)
+    """The reach sub-task (both grip sites within 2 cm of their boxes at the same step) learned
+    with 64 episodes of the scripted expert in a demonstration buffer and Q-filtered behaviour
+    cloning, on the learner of the test above (rewards scaled by 1/rc, targets clipped to
+    [-1, 1], hindsight boxes). Success on the 32 fixed evaluation placements, deterministic
+    policy, best evaluation (what `dualarm eval` loads). Measured (docs/training.md, D7):
+    0.8 or more by episode 400 in 8 of 8 seeds, about 80 s on one core; the same learner
+    without the demonstrations is at 0 and 0.31 at 480 (seeds 0, 1). The earlier settings
+    (D6: the approach funnel, no hindsight, unscaled rewards) got there in 2 of 4 seeds on
+    one machine and in neither on another."""
+    algo = DADDPGConfig(hidden=(128, 128), reward_scale=1 / 4000, q_clip=1.0, action_l2=0.02,
+                        demo_batch_size=64, bc_weight=30.0)
     config = TrainConfig(condition="none", episodes=480, num_envs=16, eval_every=80,
-                         eval_episodes=32, demo_episodes=64, algo=algo, seed=0,
-                         task={"success_at": "reach", "max_episode_steps": 30,
-                               "coordinate_bonus": 10.0, "reach_funnel": 1.0})
+                         eval_episodes=32, her_share=0.8, demo_episodes=64, algo=algo, seed=0,
+                         task={"success_at": "reach", "max_episode_steps": 30})
     train(config, tmp_path / "run", progress=False)
     success = [float(r["success_rate"]) for r in rows(tmp_path / "run" / "eval.csv")]
     assert success[0] < 0.5                                   # it starts unable
