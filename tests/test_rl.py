@@ -279,29 +279,58 @@ def test_state_dict_round_trip_continues_identically():
         other.load_state_dict(a.state_dict())
 
 
-@pytest.mark.parametrize("eval_actor", ["online", "target"])
+@pytest.mark.parametrize("eval_actor", ["online", "target", "average"])
 def test_the_deterministic_policy_acts_with_eval_actor_and_exploration_with_the_actors(eval_actor):
-    """eval_actor "target": evaluations act with the Polyak-averaged actors; exploring actions
-    (noise and random actions off here) still come from the online actors; a policy file
-    holds the evaluated actors, and a learner loaded from it acts as the saved one did."""
-    agent = small_agent(eval_actor=eval_actor, noise_std=0.0, tau=0.5)
+    """eval_actor "target" or "average": evaluations act with the Polyak-averaged actors or
+    the slower averages of policy_average; exploring actions (noise and random actions off
+    here) still come from the online actors; a policy file holds the evaluated actors, and a
+    learner loaded from it acts as the saved one did."""
+    agent = small_agent(eval_actor=eval_actor, noise_std=0.0, tau=0.5, policy_average=0.2)
     for k in range(3):
         agent.update(random_batch(k))
     obs = random_batch(9)["obs"].numpy()                                    # (N, A, O)
     norm = agent.normalizer.normalize(torch.as_tensor(obs)).transpose(0, 1)     # (A, N, O)
     mask = agent.action_mask
-    online = (agent.actor(norm) * mask).transpose(0, 1).detach().numpy()
-    averaged = (agent.actor_target(norm) * mask).transpose(0, 1).detach().numpy()
-    assert not np.allclose(online, averaged, atol=1e-4)
+    online, target, average = ((net(norm) * mask).transpose(0, 1).detach().numpy()
+                               for net in (agent.actor, agent.actor_target, agent.actor_average))
+    assert not np.allclose(online, target, atol=1e-4) and not np.allclose(target, average, atol=1e-4)
     evaluated = agent.act(obs)
-    np.testing.assert_allclose(evaluated, averaged if eval_actor == "target" else online, atol=1e-6)
+    expected = {"online": online, "target": target, "average": average}
+    np.testing.assert_allclose(evaluated, expected[eval_actor], atol=1e-6)
+    for which, actions in expected.items():                      # any actors when asked by name
+        np.testing.assert_allclose(agent.act(obs, actors=which), actions, atol=1e-6)
     np.testing.assert_allclose(agent.act(obs, np.random.default_rng(0), explore=True), online, atol=1e-6)
-    loaded = small_agent(eval_actor=eval_actor)
+    loaded = small_agent(eval_actor=eval_actor, policy_average=0.2)
     loaded.load_policy_state_dict(agent.policy_state_dict())
     np.testing.assert_allclose(loaded.act(obs), evaluated, atol=1e-6)
-    whole = small_agent(eval_actor=eval_actor)              # a latest checkpoint's learner state
+    whole = small_agent(eval_actor=eval_actor, policy_average=0.2)   # a latest checkpoint's learner state
     whole.load_policy_state_dict(agent.state_dict())
     np.testing.assert_allclose(whole.act(obs), evaluated, atol=1e-6)
+
+
+def test_policy_average_is_an_exponential_average_of_the_actors_and_resumes():
+    """After each update the averaged actors move policy_average of the way to the online
+    ones (theta_avg <- theta_avg + rate (theta - theta_avg)), computed here by hand; they
+    do not change learning (the same updates as without them) and a learner state carries
+    them; without policy_average there are none to act with."""
+    rate = 0.1
+    agent, plain = small_agent(policy_average=rate), small_agent()
+    expected = [p.detach().clone() for p in agent.actor.parameters()]
+    for k in range(4):
+        assert agent.update(random_batch(k)) == plain.update(random_batch(k))
+        expected = [e + rate * (p.detach() - e) for e, p in zip(expected, agent.actor.parameters())]
+    for e, p in zip(expected, agent.actor_average.parameters()):
+        torch.testing.assert_close(p, e)
+    resumed = small_agent(policy_average=rate)
+    resumed.load_state_dict(agent.state_dict())
+    for a, b in zip(resumed.actor_average.parameters(), agent.actor_average.parameters()):
+        assert torch.equal(a, b)
+    with pytest.raises(ValueError, match="policy_average"):
+        plain.act(random_batch(0)["obs"].numpy(), actors="average")
+    with pytest.raises(ValueError, match="eval_actor.*policy_average"):
+        DADDPGConfig(eval_actor="average")
+    with pytest.raises(ValueError, match="policy_average"):
+        DADDPGConfig(policy_average=1.5)
 
 
 def test_config_validation_names_the_field():

@@ -62,6 +62,26 @@ def test_same_seed_gives_identical_baxter_metrics(tmp_path):
     assert rows(tmp_path / "c" / "metrics.csv") != a
 
 
+def test_averaged_actors_are_evaluated_beside_without_changing_training(tmp_path):
+    """algo.policy_average: every evaluation also evaluates the averaged actors (eval.csv's
+    average_* columns) on the same placements, and the training episodes are exactly those
+    of the run without them."""
+    algo = DADDPGConfig(hidden=(32, 32), batch_size=32, warmup_steps=100, buffer_size=5000)
+    config = TrainConfig(condition="none", episodes=24, num_envs=4, eval_every=8,
+                         eval_episodes=4, algo=algo, task={"max_episode_steps": 20}, seed=5)
+    averaged = config.with_(algo=algo.with_(policy_average=0.05))
+    train(config, tmp_path / "plain", progress=False)
+    train(averaged, tmp_path / "averaged", progress=False)
+    assert rows(tmp_path / "plain" / "metrics.csv") == rows(tmp_path / "averaged" / "metrics.csv")
+    plain, both = rows(tmp_path / "plain" / "eval.csv"), rows(tmp_path / "averaged" / "eval.csv")
+    assert len(both) == 3 and "average_success_rate" not in plain[0]
+    assert [{k: r[k] for k in plain[0]} for r in both] == plain    # the run's own, unchanged
+    returns = [float(r["average_return_mean"]) for r in both]
+    assert returns[0] != float(both[0]["return_mean"]) or returns[1] != float(both[1]["return_mean"])
+    resume(tmp_path / "averaged", episodes=32, progress=False)      # the wider log resumes
+    assert len(rows(tmp_path / "averaged" / "eval.csv")) == 4
+
+
 KILLED_RUN = textwrap.dedent("""
     import sys
     from dualarm.envs.point_mass import TwoPointMassEnv

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from dualarm.cli.arguments import positive_int, run_options
+from dualarm.rl.config import EVAL_ACTORS
 from dualarm.task import SUBTASKS
 
 
@@ -18,7 +19,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     vec = make_vector_env(config, min(config.num_envs, args.episodes), start=SUBTASKS.index(args.start))
     result = evaluate(lambda o: agent.act(o), vec, args.episodes)
     start = "" if args.start == "reach" else f", both arms starting at {args.start}"
-    actors = ", target actors" if info["actors"] == "target" else ""
+    actors = {"target": ", target actors", "average": ", averaged actors"}.get(info["actors"], "")
     print(f"{info['checkpoint']} (after {info['episodes']} training episodes{actors}), "
           f"{args.episodes} evaluation episodes{start}:")
     print(f"  success rate  {result.success_rate:.3f} ({int(result.success.sum())}/{args.episodes})")
@@ -37,9 +38,10 @@ def add_eval_command(sub) -> None:
                     help="the sub-task both arms start at: reach (the normal reset, default), "
                          "grasp (at the boxes, fingers open) or align (holding them): how "
                          "well each link of the task is learned")
-    ev.add_argument("--actor", choices=("online", "target"), default=None,
-                    help="the actors or the target actors, their Polyak averages (Eq. 15), "
-                         "which act more steadily late in a run. Default: the run's own "
+    ev.add_argument("--actor", choices=EVAL_ACTORS, default=None,
+                    help="the actors, the target actors (their Polyak averages, Eq. 15, which "
+                         "act more steadily late in a run) or the averaged actors of "
+                         "algo.policy_average. Default: the run's own "
                          "(algo.eval_actor), from --checkpoint; the other ones are read "
                          "from the latest checkpoint, whatever --checkpoint says")
     ev.set_defaults(func=cmd_eval)

@@ -10,6 +10,9 @@ from dualarm.typed_fields import check_field_types
 
 #: Options removed from DADDPGConfig (issue 17, round 14; docs/training.md names the last commit
 #: that has each), with the one value a file may still give: old run directories keep loading.
+#: The actors a deterministic policy can act with (``DADDPGConfig.eval_actor``).
+EVAL_ACTORS = ("online", "target", "average")
+
 REMOVED_FIELDS = {"noise": "gaussian", "n_step": 1, "value_rescale": False, "advantage_learning": 0.0}
 
 
@@ -116,7 +119,15 @@ class DADDPGConfig:
     """The actors the deterministic policy acts with (evaluations, curriculum probes, the best
     policy file, ``dualarm eval/play/export``): "online", the actors the gradient trains, or
     "target", their Polyak averages (Eq. 15), which a run's last updates move less
-    (docs/learning-runs.md, round 12). Exploring actions always come from the online actors."""
+    (docs/learning-runs.md, round 12), or "average", the slower averages of
+    ``policy_average``. Exploring actions always come from the online actors."""
+    policy_average: float = 0.0
+    """Rate per update of a second, slower exponential average of the online actors, kept for
+    acting alone (Polyak-Ruppert averaging of the policy; Nikishin et al. 2018 average an
+    RL policy's weights for stability): 0.001 averages over about 1,000 updates, where the
+    target actors' ``tau`` 0.005 averages over 200. Each evaluation also evaluates these
+    actors (eval.csv's ``average_success_rate`` and ``average_return_mean``) without
+    changing training; ``eval_actor: average`` makes them the run's policy. 0: none."""
     warmup_steps: int = 1000
     """Joint environment steps of uniformly random actions before learning starts."""
 
@@ -135,12 +146,15 @@ class DADDPGConfig:
             "twin_min_weight": 0 <= self.twin_min_weight <= 1 and (self.twin_critics or self.twin_min_weight == 1),
             "updates_per_step": self.updates_per_step >= 0,
             "demo_batch_size": self.demo_batch_size >= 0, "bc_weight": self.bc_weight >= 0,
-            "warmup_steps": self.warmup_steps >= 0, "eval_actor": self.eval_actor in ("online", "target"),
+            "warmup_steps": self.warmup_steps >= 0, "eval_actor": self.eval_actor in EVAL_ACTORS,
+            "policy_average": 0 <= self.policy_average <= 1,
         }
         bad = [name for name, ok in checks.items() if not ok]
         if bad:
             name = bad[0]
             raise InputError(f"{name}: invalid value {getattr(self, name)!r}")
+        if self.eval_actor == "average" and self.policy_average == 0:
+            raise InputError("eval_actor: 'average' needs averaged actors (policy_average > 0)")
 
     def to_dict(self) -> dict:
         d = asdict(self)

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from dualarm.rl.config import DADDPGConfig
+from dualarm.rl.config import EVAL_ACTORS, DADDPGConfig
 from dualarm.rl.networks import StackedMLP
 from dualarm.rl.noise import GaussianNoise, HeldGrip
 from dualarm.rl.normalizer import RunningNormalizer
@@ -77,6 +77,12 @@ class DADDPG:
                                         layer_norm=c.critic_layer_norm)
         self.actor_target.load_state_dict(self.actor.state_dict())
         self.critic_target.load_state_dict(self.critic.state_dict())
+        # policy_average: a slower average of the actors, for acting only (None: off)
+        self.actor_average = None
+        if c.policy_average > 0:
+            self.actor_average = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True)
+            self.actor_average.load_state_dict(self.actor.state_dict())
+            self.actor_average.requires_grad_(False)
         for p in (*self.actor_target.parameters(), *self.critic_target.parameters()):
             p.requires_grad_(False)
         self.actor_opt = torch.optim.Adam(self.actor.parameters(), lr=c.actor_lr, fused=True)
@@ -112,10 +118,19 @@ class DADDPG:
         return (weight * squared.mean(dim=2, keepdim=True)).mean(dim=(1, 2))
 
     # --------------------------------------------------------------- acting
-    def policy(self, obs: torch.Tensor, explore: bool = True) -> torch.Tensor:
+    def actors(self, which: str) -> StackedMLP:
+        """The actors named ``which`` (one of ``EVAL_ACTORS``): "online", "target" or
+        "average" (``policy_average``'s; ValueError without it)."""
+        if which not in EVAL_ACTORS:
+            raise ValueError(f"actors must be one of {EVAL_ACTORS}, got {which!r}")
+        if which == "average" and self.actor_average is None:
+            raise ValueError("no averaged actors: algo.policy_average is 0")
+        return {"online": self.actor, "target": self.actor_target, "average": self.actor_average}[which]
+
+    def policy(self, obs: torch.Tensor, explore: bool = True, actors: str | None = None) -> torch.Tensor:
         """mu_i(s_i) for every agent: obs (A, B, O) raw float32 -> actions (A, B, U). The
-        online actors, or with ``explore`` False the config's ``eval_actor``."""
-        actor = self.actor_target if not explore and self.config.eval_actor == "target" else self.actor
+        online actors, or with ``explore`` False the config's ``eval_actor`` (or ``actors``)."""
+        actor = self.actor if explore else self.actors(actors or self.config.eval_actor)
         return actor(self.normalizer.normalize(obs.transpose(0, 1)).transpose(0, 1)) * self.action_mask
 
     def start_episodes(self, envs: np.ndarray) -> None:
@@ -126,7 +141,7 @@ class DADDPG:
 
     def act(self, obs: np.ndarray, rng: np.random.Generator | None = None,
             explore: bool = False, random_eps: np.ndarray | None = None,
-            hold_eps: np.ndarray | None = None) -> np.ndarray:
+            hold_eps: np.ndarray | None = None, actors: str | None = None) -> np.ndarray:
         """Actions (N, A, U) in [-1, 1] for observations (N, A, O) of N environments.
 
         With ``explore``, noise is added and each agent's action is replaced by a uniform
@@ -135,10 +150,11 @@ class DADDPG:
         the grip commands being held replace the agents' (``HeldGrip``; call
         ``start_episodes`` when episodes start). ``random_eps`` and ``hold_eps`` (N, A), if
         given, are those probabilities per environment and agent in place of the config's.
+        Without ``explore``, ``actors`` names the actors acting (default ``eval_actor``).
         """
         with torch.inference_mode():
             o = torch.as_tensor(np.asarray(obs, dtype=np.float32)).transpose(0, 1)
-            actions = self.policy(o, explore).transpose(0, 1).numpy().astype(np.float64)
+            actions = self.policy(o, explore, actors).transpose(0, 1).numpy().astype(np.float64)
         if explore:
             c = self.config
             actions = np.clip(actions + self.noise.sample(rng, actions.shape), -1.0, 1.0)
@@ -226,6 +242,9 @@ class DADDPG:
         tau = self.config.tau
         torch._foreach_lerp_(list(self.actor_target.parameters()), list(self.actor.parameters()), tau)
         torch._foreach_lerp_(list(self.critic_target.parameters()), list(self.critic.parameters()), tau)
+        if self.actor_average is not None:
+            torch._foreach_lerp_(list(self.actor_average.parameters()), list(self.actor.parameters()),
+                                 self.config.policy_average)
 
     def update(self, batch: dict[str, torch.Tensor], demo_rows: int = 0) -> dict[str, float]:
         """One gradient step of both agents' critics (Eq. 13) and actors (Eq. 14), then the
@@ -327,32 +346,43 @@ class DADDPG:
         for part in parts:
             getattr(self, part).load_state_dict(state[part])
 
+    @property
+    def _parts(self) -> tuple[str, ...]:
+        return self._PARTS + (("actor_average",) if self.actor_average is not None else ())
+
     def state_dict(self) -> dict:
         """Everything the learner needs to continue exactly (tensors and plain values)."""
-        return {**{p: getattr(self, p).state_dict() for p in self._PARTS},
+        return {**{p: getattr(self, p).state_dict() for p in self._parts},
                 "updates": self.updates, "torch_rng": self.torch_rng.get_state(), **self._shapes()}
 
     def load_state_dict(self, state: dict) -> None:
         """Restore from ``state_dict()``; raises ValueError naming what does not match."""
-        self._restore(state, self._PARTS, "learner")
+        self._restore(state, self._parts, "learner")
         self.updates = int(state["updates"])
         if "torch_rng" in state:
             self.torch_rng.set_state(state["torch_rng"])
 
     def policy_state_dict(self) -> dict:
         """What acting needs: the normaliser and, as "actor", the actors the deterministic
-        policy uses (``eval_actor``: the online or the target actors); small, for ``best``
-        policies."""
+        policy uses (``eval_actor``: the online, target or averaged actors); small, for
+        ``best`` policies."""
         state = {**{p: getattr(self, p).state_dict() for p in self._POLICY_PARTS}, **self._shapes()}
-        if self.config.eval_actor == "target":
-            state["actor"] = self.actor_target.state_dict()
+        state["actor"] = self.actors(self.config.eval_actor).state_dict()
         return state
 
     def load_policy_state_dict(self, state: dict) -> None:
         """Restore from ``policy_state_dict()``, or from a whole learner's ``state_dict()``
         (whose actors for acting are the ones ``eval_actor`` names): they become both the
         online and the target actors, so that the deterministic policy is the saved one."""
-        if self.config.eval_actor == "target" and "actor_target" in state:
-            state = {**state, "actor": state["actor_target"]}
+        own = {"target": "actor_target", "average": "actor_average"}.get(self.config.eval_actor)
+        if own is not None and own in state:
+            state = {**state, "actor": state[own]}
         self._restore(state, self._POLICY_PARTS, "policy")
+        self.use_actors_everywhere()
+
+    def use_actors_everywhere(self) -> None:
+        """Copy the online actors over the target and averaged ones, so that the
+        deterministic policy is the same whichever actors it reads."""
         self.actor_target.load_state_dict(self.actor.state_dict())
+        if self.actor_average is not None:
+            self.actor_average.load_state_dict(self.actor.state_dict())

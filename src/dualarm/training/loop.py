@@ -33,8 +33,8 @@ from dualarm.training.curriculum import START_CLASSES, ReverseCurriculum
 from dualarm.training.demonstrations import record_expert_demonstrations
 from dualarm.training.evaluation import evaluate
 from dualarm.training.rounds import run_round
-from dualarm.training.run_dir import (EVAL_COLUMNS, CheckpointError, CsvLog, RunPaths,
-                                      load_checkpoint, save_checkpoint)
+from dualarm.training.run_dir import (AVERAGE_EVAL_COLUMNS, EVAL_COLUMNS, CheckpointError, CsvLog,
+                                      RunPaths, load_checkpoint, save_checkpoint)
 from dualarm.training.vector import PROBE_SEED_BASE, BaxterVector, ParallelEnvVector, VectorEnv, seeds_for
 
 
@@ -187,7 +187,10 @@ class Trainer:
         self.timing = {"collect_s": 0.0, "act_s": 0.0, "store_s": 0.0, "update_s": 0.0,
                        "eval_s": 0.0, "updates": 0, "episodes": 0, "env_steps": 0}
         self.metrics = CsvLog(paths.metrics, columns)
-        self.eval_log = CsvLog(paths.eval, list(EVAL_COLUMNS), consecutive=False)
+        # with policy_average, the averaged actors are evaluated beside the run's own
+        self.eval_average = config.algo.policy_average > 0 and config.algo.eval_actor != "average"
+        columns = list(EVAL_COLUMNS) + (list(AVERAGE_EVAL_COLUMNS) if self.eval_average else [])
+        self.eval_log = CsvLog(paths.eval, columns, consecutive=False)
         self._writer = None
         self._lock: DirectoryLock | None = None
 
@@ -517,6 +520,14 @@ class Trainer:
         row = {"episode": self.episodes, "env_steps": self.env_steps,
                "wall_time_s": f"{self.wall_time_s:.3f}", "success_rate": f"{result.success_rate:.4f}",
                "return_mean": f"{result.mean_return:.6f}", "steps_mean": f"{result.steps.mean():.3f}"}
+        if self.eval_average:       # the same placements; acting draws no random numbers
+            average = evaluate(lambda o: self.agent.act(o, actors="average"), self.eval_vec,
+                               c.eval_episodes)
+            row["average_success_rate"] = f"{average.success_rate:.4f}"
+            row["average_return_mean"] = f"{average.mean_return:.6f}"
+            self._writer.add_scalar("eval/average_success_rate", average.success_rate, self.episodes)
+            self.wall_time_s = time.perf_counter() - started
+            row["wall_time_s"] = f"{self.wall_time_s:.3f}"
         self.eval_log.append([row])
         self.eval_rows += 1
         self.last_eval = {"episode": self.episodes, "success_rate": result.success_rate,

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from dualarm.errors import InputError
+from dualarm.rl.config import EVAL_ACTORS
 from dualarm.rl.daddpg import DADDPG
 from dualarm.training.config import TrainConfig
 from dualarm.training.run_dir import CheckpointError, RunPaths, load_checkpoint
@@ -62,23 +63,25 @@ def load_actors(run_dir: str | Path, which: str = "best",
     Args:
         run_dir: a run directory of ``dualarm train``.
         which: "best" or "latest", as ``load_policy``'s.
-        actors: None for the run's own (``algo.eval_actor``, from ``which``); "online" or
-            "target" for those actors: where they are not the run's own, from the latest
-            checkpoint (a best-policy file holds the run's own actors alone).
+        actors: None for the run's own (``algo.eval_actor``, from ``which``); "online",
+            "target" or "average" (``algo.policy_average``'s) for those actors: where they
+            are not the run's own, from the latest checkpoint (a best-policy file holds the
+            run's own actors alone).
 
     Returns:
         (config, learner, info) as ``load_policy``'s, plus info["actors"]: the actors acting.
     """
-    if actors not in (None, "online", "target"):
-        raise InputError(f"actors must be online or target, got {actors!r}")
+    if actors is not None and actors not in EVAL_ACTORS:
+        raise InputError(f"actors must be one of {', '.join(EVAL_ACTORS)}, got {actors!r}")
     if actors is not None:
         paths = RunPaths(run_dir)
         own = TrainConfig.load(paths.config).algo.eval_actor if paths.config.exists() else None
         if actors != own:
             config, agent, info = load_learner(run_dir)
-            acting = (agent.actor_target if actors == "target" else agent.actor).state_dict()
-            agent.actor.load_state_dict(acting)
-            agent.actor_target.load_state_dict(acting)       # act() may read either
+            if actors == "average" and agent.actor_average is None:
+                raise InputError(f"{run_dir}: has no averaged actors (its algo.policy_average is 0)")
+            agent.actor.load_state_dict(agent.actors(actors).state_dict())
+            agent.use_actors_everywhere()                      # act() may read any
             return config, agent, {**info, "actors": actors}
     config, agent, info = load_policy(run_dir, which)
     return config, agent, {**info, "actors": config.algo.eval_actor}

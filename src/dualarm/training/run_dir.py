@@ -29,6 +29,8 @@ CHECKPOINT_FORMAT = "dualarm-daddpg-checkpoint"
 CHECKPOINT_VERSION = 1
 #: Columns of eval.csv, one row per evaluation, as the trainer writes them.
 EVAL_COLUMNS = ("episode", "env_steps", "wall_time_s", "success_rate", "return_mean", "steps_mean")
+#: Columns eval.csv adds with ``algo.policy_average`` (the averaged actors, evaluated beside).
+AVERAGE_EVAL_COLUMNS = ("average_success_rate", "average_return_mean")
 
 
 class CheckpointError(DualarmError):
