@@ -8,11 +8,11 @@ from dualarm.errors import InputError
 from dualarm.typed_fields import check_field_types
 
 
-#: Options removed from DADDPGConfig (issue 17, round 14; docs/training.md names the last commit
-#: that has each), with the one value a file may still give: old run directories keep loading.
 #: The actors a deterministic policy can act with (``DADDPGConfig.eval_actor``).
 EVAL_ACTORS = ("online", "target", "average")
 
+#: Options removed from DADDPGConfig (issue 17, round 14; docs/training.md names the last commit
+#: that has each), with the one value a file may still give: old run directories keep loading.
 REMOVED_FIELDS = {"noise": "gaussian", "n_step": 1, "value_rescale": False, "advantage_learning": 0.0}
 
 
