@@ -516,18 +516,18 @@ class Trainer:
     def _evaluate(self, started: float) -> None:
         c = self.config
         result = evaluate(lambda o: self.agent.act(o), self.eval_vec, c.eval_episodes)
+        average = None
+        if self.eval_average:       # the same placements; acting draws no random numbers
+            average = evaluate(lambda o: self.agent.act(o, actors="average"), self.eval_vec,
+                               c.eval_episodes)
         self.wall_time_s = time.perf_counter() - started
         row = {"episode": self.episodes, "env_steps": self.env_steps,
                "wall_time_s": f"{self.wall_time_s:.3f}", "success_rate": f"{result.success_rate:.4f}",
                "return_mean": f"{result.mean_return:.6f}", "steps_mean": f"{result.steps.mean():.3f}"}
-        if self.eval_average:       # the same placements; acting draws no random numbers
-            average = evaluate(lambda o: self.agent.act(o, actors="average"), self.eval_vec,
-                               c.eval_episodes)
+        if average is not None:
             row["average_success_rate"] = f"{average.success_rate:.4f}"
             row["average_return_mean"] = f"{average.mean_return:.6f}"
             self._writer.add_scalar("eval/average_success_rate", average.success_rate, self.episodes)
-            self.wall_time_s = time.perf_counter() - started
-            row["wall_time_s"] = f"{self.wall_time_s:.3f}"
         self.eval_log.append([row])
         self.eval_rows += 1
         self.last_eval = {"episode": self.episodes, "success_rate": result.success_rate,
