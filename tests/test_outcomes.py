@@ -91,9 +91,31 @@ def test_a_grip_that_drifts_while_closing_closes_off_the_box():
 
 
 def test_closing_then_lifting_holds_the_box_away_from_its_target():
-    """Fingers closed for 4 steps, then straight up: held (measured: grasped at step 6)."""
-    only(outcomes(lambda o, t: command(dz=0.5 if t > 4 else 0.0, grip=1.0), start="grasp"),
-         "held, not at target")
+    """Fingers closed for 4 steps, then straight up: held (measured: grasped at step 6),
+    and each held box's distance from its target is kept: it went up, not toward it."""
+    report = outcomes(lambda o, t: command(dz=0.5 if t > 4 else 0.0, grip=1.0), start="grasp")
+    only(report, "held, not at target")
+    assert [len(d) for d in report.held_away] == [EPISODES, EPISODES]
+    assert all(d > TASK.align_threshold for arm in report.held_away for d in arm)
+    assert "held: from target, cm" in report.table()
+
+
+def test_a_carry_that_stops_short_is_held_just_off_the_target():
+    """From holding the box, moved to 5 cm beside the target and kept there: held, with
+    every box about 5 cm from its target (the carry fell short, not the grasp)."""
+    from dualarm.envs.baxter import observation_layout
+
+    layout = observation_layout(TASK.observes_joint_angles)
+
+    def short(obs, t):
+        aim = obs[:, layout["target_pos"]] - obs[:, layout["object_pos"]] - [0.05, 0.0, 0.0]
+        a = np.zeros((2, 4))
+        a[:, :3], a[:, 3] = np.clip(aim / 0.05, -1.0, 1.0), 1.0
+        return a
+
+    report = outcomes(short, start="align")
+    only(report, "held, not at target")
+    assert all(0.035 < d < 0.07 for arm in report.held_away for d in arm), report.held_away
 
 
 def test_opening_the_hand_drops_a_held_box():

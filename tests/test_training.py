@@ -510,7 +510,7 @@ def test_approach_shaping_is_potential_based_on_the_grip_to_box_distance(tmp_pat
                     for left in ([0.0, 0.3, 0.4], [0.0, 0.0, 0.1]))
         done = torch.tensor([0.0, 1.0])
         g = config.algo.gamma
-        shaping = trainer.approach_shaping({"obs": obs, "next_obs": nxt, "done": done})
+        shaping = trainer.shaping({"obs": obs, "next_obs": nxt, "done": done})
         torch.testing.assert_close(shaping, torch.tensor(
             [[g * -0.2 + 1.0, g * -0.4 + 0.4], [1.0, 0.4]]))
         seen = []
@@ -522,6 +522,31 @@ def test_approach_shaping_is_potential_based_on_the_grip_to_box_distance(tmp_pat
         trainer.close()
     with pytest.raises(ValueError, match="approach_shaping must be"):
         curriculum_config(approach_shaping=-1.0)
+
+
+def test_carry_shaping_adds_a_potential_on_the_box_to_target_distance(tmp_path):
+    """carry_shaping k: phi gains -k * |target - box| per arm, beside approach_shaping's term;
+    a box that does not move adds the constant -(1 - gamma) phi."""
+    from dualarm.envs.baxter import observation_layout
+
+    config = curriculum_config(approach_shaping=2.0, carry_shaping=3.0, episodes=8)
+    layout = observation_layout(config.task_config().observes_joint_angles)
+    trainer = Trainer.start(config, tmp_path / "run", progress=False)
+    try:
+        obs, nxt = (box_offset_obs(config, trainer.vec.obs_size, [[[0.0, 0.0, 0.1]] * 2])
+                    for _ in range(2))                     # both grips 0.1 m from their boxes
+        obs[0, :, layout["target_pos"]] = [[0.4, 0.0, 0.0], [0.0, 0.2, 0.0]]
+        nxt[0, :, layout["target_pos"]] = [[0.1, 0.0, 0.0], [0.0, 0.2, 0.0]]   # left carried 0.3 m
+        batch = {"obs": torch.as_tensor(obs, dtype=torch.float32),
+                 "next_obs": torch.as_tensor(nxt, dtype=torch.float32), "done": torch.zeros(1)}
+        g = config.algo.gamma
+        phi = lambda d_box, d_target: -2.0 * d_box - 3.0 * d_target  # noqa: E731
+        torch.testing.assert_close(trainer.shaping(batch), torch.tensor(
+            [[g * phi(0.1, 0.1) - phi(0.1, 0.4), g * phi(0.1, 0.2) - phi(0.1, 0.2)]]))
+    finally:
+        trainer.close()
+    with pytest.raises(ValueError, match="carry_shaping must be"):
+        curriculum_config(carry_shaping=-0.5)
 
 
 def test_curriculum_options_are_checked(tmp_path):

@@ -44,14 +44,11 @@ def _critic_table(args: argparse.Namespace) -> int:
     """Each arm's critic Q(s_t, a_t) next to the discounted return observed from step t, in
     the learner's units, from each start asked for (the latest checkpoint: the critics)."""
     from dualarm.training.diagnostics import critic_vs_returns
-    from dualarm.training.loop import approach_potential, box_offset_columns, make_vector_env
+    from dualarm.training.loop import make_vector_env, shaping_potential
     from dualarm.training.policy import load_learner
 
     config, agent, info = load_learner(args.run)
-    potential = None
-    if config.approach_shaping > 0:
-        rel = box_offset_columns(config.task_config())
-        potential = lambda obs: approach_potential(obs, rel, config.approach_shaping)  # noqa: E731
+    potential = shaping_potential(config)
     constraints = config.load_constraints()
     print(f"{info['checkpoint']} (after {info['episodes']} training episodes), {args.episodes} "
           f"episodes per start, deterministic policy; Q and the observed discounted return G "

@@ -89,6 +89,11 @@ class TrainConfig:
             paper's reward unchanged and the logged returns are the paper's; it gives the
             critic a gradient towards the box where the task's value is still out of sight
             (the reach from home, docs/learning-runs.md, round 10). 0 turns it off.
+        carry_shaping: k, as ``approach_shaping``'s but with phi(s) = -k * (the distance from
+            each arm's box to its target): the same gradient for the carry, where the paper's
+            distance term, scaled with rc to 1, is 4,000 times weaker (round 17). The box
+            rests until grasped, so before the grasp the term is the constant -(1 - gamma) phi.
+            Both potentials add. 0 turns it off.
         reward_heads: split each agent's reward into three components, each learned by its
             own critic head at its own scale (``DADDPG``'s ``head_scales``): the per-step
             terms (distance + guide) times ``algo.reward_scale``, the goal bonuses divided
@@ -123,6 +128,7 @@ class TrainConfig:
     reward_heads: bool = False
     her_share: float = 0.0
     approach_shaping: float = 0.0
+    carry_shaping: float = 0.0
     demo_episodes: int = 0
     algo: DADDPGConfig = field(default_factory=DADDPGConfig)
 
@@ -181,8 +187,9 @@ class TrainConfig:
             if getattr(self, name) and not self.uses_start_states:
                 raise InputError(f"{name} moves the start states: give start_probs other "
                                  "than (1, 0, 0), for example [0.2, 0.2, 0.6]")
-        if self.approach_shaping < 0:
-            raise InputError(f"approach_shaping must be >= 0, got {self.approach_shaping}")
+        for name in ("approach_shaping", "carry_shaping"):
+            if getattr(self, name) < 0:
+                raise InputError(f"{name} must be >= 0, got {getattr(self, name)}")
         if not 0 <= self.her_share <= 1:
             raise InputError(f"her_share must be in [0, 1], got {self.her_share}")
         if self.checkpoint_minutes <= 0:
@@ -196,6 +203,7 @@ class TrainConfig:
                 "far_action_l2": self.far_action_l2 is not None,
                 "near_random_eps": self.near_random_eps is not None,
                 "approach_shaping": self.approach_shaping > 0,
+                "carry_shaping": self.carry_shaping > 0,
                 "algo.grip_hold_eps": self.algo.grip_hold_eps > 0}
         return [name for name, on in used.items() if on]
 

@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from dualarm.atomic import atomic_copy
-from dualarm.envs.baxter import HEAD_TERMS, ReachRelabeller, TargetRelabeller
+from dualarm.envs.baxter import HEAD_TERMS, ReachRelabeller, TargetRelabeller, observation_layout
 from dualarm.errors import DualarmError, InputError
 from dualarm.locks import DirectoryLock
 from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
@@ -95,6 +95,24 @@ def approach_potential(obs, rel_columns: slice, k: float):
     return -k * grip_to_box_distance(obs, rel_columns)
 
 
+def shaping_potential(config: TrainConfig):
+    """The run's potential phi(obs) -> (..., A) for raw observations (..., A, O), numpy or
+    torch, in the learner's reward units: -``approach_shaping`` x the grip-to-box distance
+    - ``carry_shaping`` x the box-to-target distance (m). None when both are 0."""
+    approach, carry = config.approach_shaping, config.carry_shaping
+    if approach == 0 and carry == 0:
+        return None
+    layout = observation_layout(config.task_config().observes_joint_angles)
+    rel, box, target = layout["object_rel_pos"], layout["object_pos"], layout["target_pos"]
+
+    def phi(obs):
+        value = approach_potential(obs, rel, approach)
+        if carry > 0:
+            value = value - carry * ((obs[..., target] - obs[..., box]) ** 2).sum(-1) ** 0.5
+        return value
+    return phi
+
+
 class Trainer:
     """One run of DADDPG in a run directory (see ``dualarm.training.run_dir``).
 
@@ -145,6 +163,7 @@ class Trainer:
             relabeller = goals(task, task.observes_joint_angles)
             self.sampler = HindsightSampler(self.buffer, relabeller.achieved, relabeller.relabel,
                                             config.her_share)
+        self.potential = shaping_potential(config)      # approach_shaping, carry_shaping
         # far_action_l2, near_random_eps, approach_shaping, grip_hold_eps: each arm's
         # box-minus-grip offset in its observation, (3,) columns
         self.rel_columns = None
@@ -335,14 +354,14 @@ class Trainer:
         far = self.box_distance(obs) > self.config.near_box_radius
         return torch.where(far, self.config.far_action_l2, self.agent.action_l2)
 
-    def approach_shaping(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
+    def shaping(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
         """The potential-based shaping term per sample and arm, (B, A), in the learner's
-        reward units: gamma * phi(s') * (1 - done) - phi(s), phi = -``approach_shaping`` x the
-        grip-to-box distance (m) in the raw observations (B, A, O) (a success ends the
-        episode with phi = 0, so the shaped return differs from the paper's by -phi(s0) only)."""
-        k, gamma = self.config.approach_shaping, self.config.algo.gamma
-        phi = approach_potential(batch["obs"], self.rel_columns, k)         # (B, A)
-        phi2 = approach_potential(batch["next_obs"], self.rel_columns, k)
+        reward units: gamma * phi(s') * (1 - done) - phi(s), phi from ``shaping_potential``
+        (``approach_shaping``, ``carry_shaping``) on the raw observations (B, A, O) (a success
+        ends the episode with phi = 0, so the shaped return differs from the paper's by
+        -phi(s0) only)."""
+        gamma = self.config.algo.gamma
+        phi, phi2 = self.potential(batch["obs"]), self.potential(batch["next_obs"])  # (B, A)
         return gamma * (1.0 - batch["done"]).unsqueeze(-1) * phi2 - phi
 
     def hold_eps(self, obs: np.ndarray) -> np.ndarray | None:
@@ -488,8 +507,8 @@ class Trainer:
                 batch = {k: torch.cat([batch[k], demos[k]]) for k in batch}
             if self.config.far_action_l2 is not None:
                 batch["penalty_weight"] = self.penalty_weight(batch["obs"])
-            if self.config.approach_shaping > 0:
-                batch["shaping"] = self.approach_shaping(batch)
+            if self.potential is not None:
+                batch["shaping"] = self.shaping(batch)
             try:
                 losses.append(self.agent.update(batch, demo_rows))
             except NonFiniteLoss as exc:

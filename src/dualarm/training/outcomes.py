@@ -59,12 +59,16 @@ class OutcomeReport:
         episodes: how many episodes.
         closest_unreached: per arm, the closest approach (m) of its box in each episode in
             which it never reached it.
+        held_away: per arm, its box's distance (m) from its target at the end of each episode
+            in which it ended ``held, not at target``: just over ``align_threshold`` is a
+            carry that fell short, tens of centimetres one that never carried.
     """
 
     counts: np.ndarray
     success: np.ndarray
     episodes: int
     closest_unreached: tuple[list[float], list[float]] = ([], [])
+    held_away: tuple[list[float], list[float]] = ([], [])
 
     @property
     def success_rate(self) -> float:
@@ -83,6 +87,9 @@ class OutcomeReport:
         if any(self.closest_unreached):
             medians = [f"{100 * np.median(d):>8.1f}" if d else f"{'-':>8}" for d in self.closest_unreached]
             lines.append(f"  {'not reached: closest, cm':<24}" + "".join(medians) + "  (median)")
+        if any(self.held_away):
+            medians = [f"{100 * np.median(d):>8.1f}" if d else f"{'-':>8}" for d in self.held_away]
+            lines.append(f"  {'held: from target, cm':<24}" + "".join(medians) + "  (median)")
         return "\n".join(lines)
 
 
@@ -156,7 +163,8 @@ def link_outcomes(act, vec: VectorEnv, task: TaskConfig, episodes: int = 32,
     layout = observation_layout(task.observes_joint_angles)
     gap_closed = closed_gap(task)
     counts = np.zeros((2, len(OUTCOMES)), dtype=np.int64)
-    closest = ([], [])
+    closest, held_away = ([], []), ([], [])
+    held_class = OUTCOMES.index("held, not at target")
     trace = _ArmTrace(vec.num_envs)
 
     def on_step(obs, actions, step, live):
@@ -187,7 +195,10 @@ def link_outcomes(act, vec: VectorEnv, task: TaskConfig, episodes: int = 32,
                     counts[arm, k] += 1
                     if not trace.reached[i, arm]:
                         closest[arm].append(float(trace.closest[i, arm]))
+                    if k == held_class:
+                        away = o[j, arm, layout["target_pos"]] - o[j, arm, layout["object_pos"]]
+                        held_away[arm].append(float(np.linalg.norm(away)))
                 trace.steps[i] = 0                                   # the copy's next episode
 
     result = evaluate(act, vec, episodes, seed_base, on_step=on_step)
-    return OutcomeReport(counts, result.success, episodes, closest)
+    return OutcomeReport(counts, result.success, episodes, closest, held_away)
