@@ -127,6 +127,16 @@ def test_diagnose_counts_each_arms_outcome_from_each_start(run_dir, capsys):
     assert sum(int(r[-2]) for r in rows) == 4 and sum(int(r[-1]) for r in rows) == 4
 
 
+def test_diagnose_runs_the_actors_asked_for(run_dir, capsys):
+    """--actor target diagnoses the target actors (named in the heading); averaged actors a
+    run without them does not have are refused with the run's name, exit status 2."""
+    assert main(["diagnose", str(run_dir), "--episodes", "2", "--start", "align",
+                 "--actor", "target"]) == 0
+    assert "target actors" in capsys.readouterr().out
+    assert main(["diagnose", str(run_dir), "--episodes", "2", "--actor", "average"]) == 2
+    assert "no averaged actors" in capsys.readouterr().err
+
+
 def test_export_writes_time_joints_and_grip(run_dir, tmp_path, capsys):
     out = tmp_path / "trajectory.csv"
     assert main(["export", str(run_dir), "-o", str(out), "--seed", "4"]) == 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from dualarm.cli.arguments import positive_int, run_options
+from dualarm.rl.config import EVAL_ACTORS
 from dualarm.task import SUBTASKS
 
 
@@ -13,16 +14,17 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     from dualarm.errors import InputError
     from dualarm.training.loop import make_vector_env
     from dualarm.training.outcomes import link_outcomes
-    from dualarm.training.policy import load_policy
+    from dualarm.training.policy import load_actors
 
     if args.critic:
         return _critic_table(args)
-    config, agent, info = load_policy(args.run, args.checkpoint)
+    config, agent, info = load_actors(args.run, args.checkpoint, args.actor)
     task = config.task_config()
     if task.control != "cartesian":
         raise InputError(f"{args.run}: dualarm diagnose reads cartesian-control runs only")
     constraints = config.load_constraints()
-    print(f"{info['checkpoint']} (after {info['episodes']} training episodes), "
+    actors = {"target": ", target actors", "average": ", averaged actors"}.get(info["actors"], "")
+    print(f"{info['checkpoint']} (after {info['episodes']} training episodes{actors}), "
           f"{args.episodes} episodes per start, deterministic policy:")
     for start in args.start:
         vec = make_vector_env(config, min(config.num_envs, args.episodes), constraints=constraints,
@@ -85,6 +87,10 @@ def add_diagnose_command(sub) -> None:
                    help="the sub-tasks both arms start at (default: all three): reach is "
                         "the normal reset, grasp at the boxes with the fingers open, align "
                         "holding them")
+    p.add_argument("--actor", choices=EVAL_ACTORS, default=None,
+                   help="the actors acting, as dualarm eval's --actor: online, target or "
+                        "average (algo.policy_average's); default the run's own, from "
+                        "--checkpoint; the others from the latest checkpoint")
     p.add_argument("--critic", action="store_true",
                    help="instead: each arm's critic Q next to the discounted return its "
                         "policy really collects, by step of the episode (the latest "
