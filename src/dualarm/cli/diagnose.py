@@ -14,7 +14,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     from dualarm.errors import InputError
     from dualarm.training.loop import make_vector_env
     from dualarm.training.outcomes import link_outcomes
-    from dualarm.training.policy import load_actors
+    from dualarm.training.policy import load_actors, policy_heading
 
     if args.critic:
         return _critic_table(args)
@@ -23,8 +23,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     if task.control != "cartesian":
         raise InputError(f"{args.run}: dualarm diagnose reads cartesian-control runs only")
     constraints = config.load_constraints()
-    actors = {"target": ", target actors", "average": ", averaged actors"}.get(info["actors"], "")
-    print(f"{info['checkpoint']} (after {info['episodes']} training episodes{actors}), "
+    print(f"{policy_heading(info)}, "
           f"{args.episodes} episodes per start, deterministic policy:")
     for start in args.start:
         vec = make_vector_env(config, min(config.num_envs, args.episodes), constraints=constraints,

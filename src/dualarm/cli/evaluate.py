@@ -13,14 +13,13 @@ def cmd_eval(args: argparse.Namespace) -> int:
     """Success rate and mean return of a run's policy on the fixed evaluation episodes."""
     from dualarm.training.evaluation import evaluate
     from dualarm.training.loop import make_vector_env
-    from dualarm.training.policy import load_actors
+    from dualarm.training.policy import load_actors, policy_heading
 
     config, agent, info = load_actors(args.run, args.checkpoint, args.actor)
     vec = make_vector_env(config, min(config.num_envs, args.episodes), start=SUBTASKS.index(args.start))
     result = evaluate(lambda o: agent.act(o), vec, args.episodes)
     start = "" if args.start == "reach" else f", both arms starting at {args.start}"
-    actors = {"target": ", target actors", "average": ", averaged actors"}.get(info["actors"], "")
-    print(f"{info['checkpoint']} (after {info['episodes']} training episodes{actors}), "
+    print(f"{policy_heading(info)}, "
           f"{args.episodes} evaluation episodes{start}:")
     print(f"  success rate  {result.success_rate:.3f} ({int(result.success.sum())}/{args.episodes})")
     print(f"  return        {result.mean_return:.1f} (mean, both arms)")

@@ -164,11 +164,11 @@ class Trainer:
             self.sampler = HindsightSampler(self.buffer, relabeller.achieved, relabeller.relabel,
                                             config.her_share)
         self.potential = shaping_potential(config)      # approach_shaping, carry_shaping
-        # far_action_l2, near_random_eps, approach_shaping, grip_hold_eps: each arm's
-        # box-minus-grip offset in its observation, (3,) columns
+        # far_action_l2, near_random_eps, grip_hold_eps: each arm's box-minus-grip offset
+        # in its observation, (3,) columns
         self.rel_columns = None
         if config.far_action_l2 is not None or config.near_random_eps is not None \
-                or config.approach_shaping > 0 or config.algo.grip_hold_eps > 0:
+                or config.algo.grip_hold_eps > 0:
             self.rel_columns = box_offset_columns(task)
         # Demonstrations are recorded again on resume (the expert and the physics are
         # deterministic); the normaliser's statistics then come from the checkpoint.

@@ -84,12 +84,11 @@ class OutcomeReport:
         for k, name in enumerate(OUTCOMES):
             if self.counts[:, k].any():
                 lines.append(f"  {name:<24}" + "".join(f"{int(n):>8}" for n in self.counts[:, k]))
-        if any(self.closest_unreached):
-            medians = [f"{100 * np.median(d):>8.1f}" if d else f"{'-':>8}" for d in self.closest_unreached]
-            lines.append(f"  {'not reached: closest, cm':<24}" + "".join(medians) + "  (median)")
-        if any(self.held_away):
-            medians = [f"{100 * np.median(d):>8.1f}" if d else f"{'-':>8}" for d in self.held_away]
-            lines.append(f"  {'held: from target, cm':<24}" + "".join(medians) + "  (median)")
+        for label, per_arm in (("not reached: closest, cm", self.closest_unreached),
+                               ("held: from target, cm", self.held_away)):
+            if any(per_arm):
+                medians = [f"{100 * np.median(d):>8.1f}" if d else f"{'-':>8}" for d in per_arm]
+                lines.append(f"  {label:<24}" + "".join(medians) + "  (median)")
         return "\n".join(lines)
 
 

@@ -87,6 +87,13 @@ def load_actors(run_dir: str | Path, which: str = "best",
     return config, agent, {**info, "actors": config.algo.eval_actor}
 
 
+def policy_heading(info: dict) -> str:
+    """"CHECKPOINT (after N training episodes[, target actors | , averaged actors])" for the
+    ``info`` of ``load_actors``: the first words of what eval and diagnose print."""
+    actors = {"target": ", target actors", "average": ", averaged actors"}.get(info.get("actors"), "")
+    return f"{info['checkpoint']} (after {info['episodes']} training episodes{actors})"
+
+
 def _load(run_dir: str | Path, which: str, whole: bool) -> tuple[TrainConfig, DADDPG, dict]:
     """Read the run's config and one checkpoint (once: a latest checkpoint holds the replay
     buffer too); restore the policy's parts, or with ``whole`` the whole learner."""
