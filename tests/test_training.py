@@ -15,7 +15,7 @@ import torch
 import yaml
 
 from dualarm.envs.point_mass import TwoPointMassEnv
-from dualarm.rl import DADDPGConfig
+from dualarm.rl import DADDPG, DADDPGConfig
 from dualarm.training import TrainConfig, Trainer, TrainingDiverged, resume, train
 from dualarm.training.run_dir import CheckpointError, load_checkpoint
 from dualarm.training.vector import ParallelEnvVector, seeds_for
@@ -62,22 +62,38 @@ def test_same_seed_gives_identical_baxter_metrics(tmp_path):
     assert rows(tmp_path / "c" / "metrics.csv") != a
 
 
-def test_averaged_actors_are_evaluated_beside_without_changing_training(tmp_path):
+def test_averaged_actors_are_evaluated_beside_without_changing_training(tmp_path, monkeypatch):
     """algo.policy_average: every evaluation also evaluates the averaged actors (eval.csv's
     average_* columns) on the same placements, and the training episodes are exactly those
-    of the run without them."""
+    of the run without them. eval_actor "average" makes them the run's policy and still
+    trains the same episodes: the curriculum's probes act with the online actors."""
     algo = DADDPGConfig(hidden=(32, 32), batch_size=32, warmup_steps=100, buffer_size=5000)
     config = TrainConfig(condition="none", episodes=24, num_envs=4, eval_every=8,
-                         eval_episodes=4, algo=algo, task={"max_episode_steps": 20}, seed=5)
+                         eval_episodes=4, algo=algo, task={"max_episode_steps": 20}, seed=5,
+                         start_probs=(0.2, 0.2, 0.6), start_curriculum=0.5, curriculum_probe=4)
     averaged = config.with_(algo=algo.with_(policy_average=0.05))
     train(config, tmp_path / "plain", progress=False)
     train(averaged, tmp_path / "averaged", progress=False)
-    assert rows(tmp_path / "plain" / "metrics.csv") == rows(tmp_path / "averaged" / "metrics.csv")
+    acting, act = [], DADDPG.act
+
+    def recording_act(self, obs, *args, explore=False, actors=None, **kwargs):
+        acting.append((explore, actors))
+        return act(self, obs, *args, explore=explore, actors=actors, **kwargs)
+    monkeypatch.setattr(DADDPG, "act", recording_act)
+    train(config.with_(algo=algo.with_(policy_average=0.05, eval_actor="average")),
+          tmp_path / "policy", progress=False)
+    assert {a for explore, a in acting if not explore} == {None, "online"}  # evaluations, probes
+    for run in ("averaged", "policy"):
+        assert rows(tmp_path / "plain" / "metrics.csv") == rows(tmp_path / run / "metrics.csv")
     plain, both = rows(tmp_path / "plain" / "eval.csv"), rows(tmp_path / "averaged" / "eval.csv")
     assert len(both) == 3 and "average_success_rate" not in plain[0]
     assert [{k: r[k] for k in plain[0]} for r in both] == plain    # the run's own, unchanged
     returns = [float(r["average_return_mean"]) for r in both]
     assert returns[0] != float(both[0]["return_mean"]) or returns[1] != float(both[1]["return_mean"])
+    policy = rows(tmp_path / "policy" / "eval.csv")                 # the averaged actors', as the run's
+    assert [(r["success_rate"], r["return_mean"]) for r in policy] == \
+        [(r["average_success_rate"], r["average_return_mean"]) for r in both]
+    assert "average_success_rate" not in policy[0]
     resume(tmp_path / "averaged", episodes=32, progress=False)      # the wider log resumes
     assert len(rows(tmp_path / "averaged" / "eval.csv")) == 4
 
@@ -85,7 +101,7 @@ def test_averaged_actors_are_evaluated_beside_without_changing_training(tmp_path
 KILLED_RUN = textwrap.dedent("""
     import sys
     from dualarm.envs.point_mass import TwoPointMassEnv
-    from dualarm.rl import DADDPGConfig
+    from dualarm.rl import DADDPG, DADDPGConfig
     from dualarm.training import TrainConfig, train
     algo = DADDPGConfig(hidden=(32, 32), batch_size=64, updates_per_step=0.5, warmup_steps=300,
                         buffer_size=50_000)

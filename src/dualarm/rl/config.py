@@ -116,8 +116,9 @@ class DADDPGConfig:
     updates_per_step: float = 0.5
     """Gradient updates per joint environment step (the update-to-data ratio)."""
     eval_actor: str = "online"
-    """The actors the deterministic policy acts with (evaluations, curriculum probes, the best
-    policy file, ``dualarm eval/play/export``): "online", the actors the gradient trains, or
+    """The actors the deterministic policy acts with (evaluations, the best policy file,
+    ``dualarm eval/play/export``; the curriculum's probes always act with the online actors,
+    so this choice does not change training): "online", the actors the gradient trains, or
     "target", their Polyak averages (Eq. 15), which a run's last updates move less
     (docs/learning-runs.md, round 12), or "average", the slower averages of
     ``policy_average``. Exploring actions always come from the online actors."""

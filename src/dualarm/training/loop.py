@@ -520,7 +520,9 @@ class Trainer:
 
     def _probe_curriculum(self) -> None:
         """Deterministic episodes from each later start class, recorded by the curriculum
-        (``TrainConfig.curriculum_probe``); seeds of their own, so training is not disturbed."""
+        (``TrainConfig.curriculum_probe``); seeds of their own, so training is not disturbed.
+        They act with the online actors whatever ``eval_actor`` is: the curriculum follows
+        the learner, and which actors are the run's policy does not change its training."""
         c = self.config
         if self.probe_vecs is None:
             n = min(c.num_envs, c.curriculum_probe)
@@ -528,7 +530,8 @@ class Trainer:
                                for k in range(1, len(START_CLASSES))}
         for k, vec in self.probe_vecs.items():
             seed_base = int(np.random.SeedSequence([PROBE_SEED_BASE, k, self.episodes]).generate_state(1)[0])
-            result = evaluate(lambda o: self.agent.act(o), vec, c.curriculum_probe, seed_base)
+            result = evaluate(lambda o: self.agent.act(o, actors="online"), vec, c.curriculum_probe,
+                              seed_base)
             self.curriculum.record(np.full((c.curriculum_probe, 2), k), result.success)
             self._writer.add_scalar(f"curriculum/probe_{START_CLASSES[k]}", result.success_rate, self.episodes)
 
