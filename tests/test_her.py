@@ -126,3 +126,77 @@ def test_reach_relabelling_with_the_real_boxes_changes_nothing_and_with_the_grip
                                grips[None] - o2[:, :, :3], atol=1e-12)      # rel = box - grip
     with pytest.raises(ValueError, match="reach task"):
         ReachRelabeller(TaskConfig(), False)
+
+
+def _two_episodes(buffer_size: int = 100):
+    """A buffer holding an episode of 6 steps that terminates and one of 5 cut by the time
+    limit; obs[..., 0] is the step's storage row, rew that row's number + 1 (both agents)."""
+    buffer = ReplayBuffer(buffer_size, 2, 4, 1)
+    for length, terminated in ((6, True), (5, False)):
+        start = len(buffer)
+        rows = np.arange(start, start + length, dtype=np.float32)
+        obs = np.zeros((length, 2, 4), np.float32)
+        obs[..., 0] = rows[:, None]
+        nxt = obs.copy()
+        nxt[..., 0] += 0.5
+        buffer.add_episode(obs, np.zeros((length, 2, 1)), np.repeat(rows[:, None] + 1, 2, 1),
+                           nxt, terminated)
+    return buffer
+
+
+def test_n_step_returns_sum_the_rewards_of_the_episode_and_stop_at_its_end():
+    gamma = 0.9
+    buffer = _two_episodes()
+    sampler = HindsightSampler(buffer, None, None, share=0.0, n_step=3, gamma=gamma)
+    batch = {k: v.numpy() for k, v in sampler.sample(np.random.default_rng(1), 200).items()}
+    ends = {0: (5, True), 1: (5, True), 2: (5, True), 3: (5, True), 4: (5, True), 5: (5, True),
+            6: (10, False), 7: (10, False), 8: (10, False), 9: (10, False), 10: (10, False)}
+    seen = set()
+    for obs, rew, nxt, done, discount in zip(batch["obs"], batch["rew"], batch["next_obs"],
+                                             batch["done"], batch["discount"]):
+        t = int(obs[0, 0])
+        last, terminates = ends[t]
+        m = min(3, last - t + 1)
+        seen.add(m)
+        expected = sum(gamma ** k * (t + k + 1) for k in range(m))
+        np.testing.assert_allclose(rew, [expected, expected], rtol=1e-6)
+        assert nxt[0, 0] == t + m - 1 + 0.5                          # the state after m steps
+        assert done == float(terminates and t + m - 1 == last)      # a time limit bootstraps
+        np.testing.assert_allclose(discount, gamma ** m, rtol=1e-6)
+    assert seen == {1, 2, 3}
+    one = HindsightSampler(buffer, None, None, share=0.0, n_step=1, gamma=gamma)
+    plain = one.sample(np.random.default_rng(1), 200)
+    assert "discount" not in plain                                    # n = 1: Eq. 13 unchanged
+    np.testing.assert_array_equal(plain["obs"].numpy(), batch["obs"])
+
+
+def test_n_step_returns_relabel_every_step_for_the_rows_hindsight_goal():
+    """Each of the m rewards of a relabelled row is the one its transition gets for that
+    goal alone, and the sum stops at the step the goal is reached (the new end)."""
+    task, gamma = TaskConfig(), 0.98
+    relabeller = TargetRelabeller(task, False)
+    buffer = ReplayBuffer(1000, 2, 29, 4, 3)
+    for seed in (1, 2):
+        o, a, r, h, o2, term, env = expert_episode(seed, task)
+        buffer.add_episode(o, a, h, o2, term)
+    sampler = HindsightSampler(buffer, relabeller.achieved, relabeller.relabel, share=1.0,
+                               n_step=4, gamma=gamma)
+    batch = {k: v.numpy() for k, v in sampler.sample(np.random.default_rng(3), 128).items()}
+    data, stopped_early = buffer.data, 0
+    for i in range(128):
+        same = (data["obs"][:len(buffer), :, :-3] == batch["obs"][i, :, :-3]).all(axis=(1, 2))
+        assert same.sum() == 1                                      # the target is the last 3
+        t = int(np.flatnonzero(same)[0])
+        goal = batch["obs"][i, :, -3:]
+        total, m = np.zeros((2, 3)), 0
+        for k in range(4):
+            one = {key: data[key][t + k:t + k + 1].copy() for key in ("obs", "rew", "next_obs", "done")}
+            relabeller.relabel(one, np.array([0]), goal[None])
+            total += gamma ** k * one["rew"][0]
+            m = k + 1
+            if one["done"][0] or data["left"][t + k] == 0:
+                break
+        stopped_early += m < 4
+        np.testing.assert_allclose(batch["rew"][i], total, rtol=1e-5, atol=1e-6)
+        np.testing.assert_allclose(batch["discount"][i], gamma ** m, rtol=1e-6)
+    assert stopped_early > 0

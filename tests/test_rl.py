@@ -120,6 +120,21 @@ def test_twin_min_weight_mixes_the_minimum_and_the_mean_of_the_target_twins():
         DADDPGConfig(twin_critics=True, twin_min_weight=1.5)
 
 
+def test_a_discount_per_sample_replaces_gamma_in_the_target():
+    """n-step rows: y = r + discount * (1 - done) * Q', with the row's own discount."""
+    batch = random_batch()
+    agent = small_agent()
+    r = batch["rew"].T.unsqueeze(-1)
+    not_done = (1 - batch["done"]).view(1, -1, 1)
+    o2 = agent.normalizer.normalize(batch["next_obs"]).transpose(0, 1)
+    discount = torch.linspace(0.5, 0.99, 8).view(1, -1, 1)
+    one_step = agent.td_target(r, not_done, o2)
+    q2 = (one_step - r) / agent.config.gamma              # (1 - done) Q'
+    torch.testing.assert_close(agent.td_target(r, not_done, o2, discount), r + discount * q2)
+    with pytest.raises(ValueError, match="n_step"):
+        DADDPGConfig(n_step=0)
+
+
 def test_update_follows_equations_13_to_15():
     agent = small_agent()
     agent.normalizer.update(np.random.default_rng(0).normal(size=(50, 2, 7)))
@@ -405,7 +420,7 @@ def test_settings_of_the_older_layout_still_load():
     del old["tau"]
     assert DADDPGConfig.from_dict(old) == DADDPGConfig(tau=1 - 0.95)
     assert DADDPGConfig.from_dict({"advantage_learning": 0}) == DADDPGConfig()   # an int 0 too
-    for name, value in (("noise", "ou"), ("n_step", 3), ("value_rescale", True),
+    for name, value in (("noise", "ou"), ("value_rescale", True),
                         ("value_rescale", 0), ("advantage_learning", 0.9)):
         with pytest.raises(ValueError, match=f"{name}: .* is no longer an option"):
             DADDPGConfig.from_dict({name: value})

@@ -190,12 +190,14 @@ class DADDPG:
             return q
         return (q * self._head_weights).sum(-1, keepdim=True)
 
-    def td_target(self, r: torch.Tensor, not_done: torch.Tensor, o2: torch.Tensor) -> torch.Tensor:
+    def td_target(self, r: torch.Tensor, not_done: torch.Tensor, o2: torch.Tensor,
+                  discount: torch.Tensor | None = None) -> torch.Tensor:
         """Eq. 13's y_i = r_i + gamma Q'_i(s', mu'_i(s'_i)), (A, B, H), without gradients.
 
         r (A, B, H) scaled rewards, not_done (1, B, 1), o2 (A, B, O) normalised next
-        observations. With twin critics Q' is the smaller of the two target critics (or with
-        ``twin_min_weight`` beta, beta min + (1 - beta) mean), with
+        observations; discount (1, B, 1) in place of gamma, per sample (gamma^m for rewards
+        summed over m steps, n-step returns). With twin critics Q' is the smaller of the two
+        target critics (or with ``twin_min_weight`` beta, beta min + (1 - beta) mean), with
         ``target_noise`` the target actions are smoothed (TD3), with ``q_clip`` y is clipped.
         """
         c = self.config
@@ -203,7 +205,8 @@ class DADDPG:
         if c.target_noise > 0:
             eps = (torch.randn(a2.shape, generator=self.torch_rng) * c.target_noise).clamp(-0.5, 0.5)
             a2 = (a2 + eps).clamp(-1.0, 1.0)
-        y = r + c.gamma * not_done * self._target_q(o2, a2)
+        gamma = c.gamma if discount is None else discount
+        y = r + gamma * not_done * self._target_q(o2, a2)
         return y.clamp(-c.q_clip, c.q_clip) if c.q_clip > 0 else y
 
     def _target_q(self, o: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
@@ -255,7 +258,8 @@ class DADDPG:
                 heads, (B, A, H), and done (B,); optionally penalty_weight (B, A), the action
                 penalty's weight per sample and agent in place of ``action_l2``; optionally
                 shaping (B, A), a term added to the first head's scaled reward (learner units,
-                for example potential-based shaping).
+                for example potential-based shaping); optionally discount (B,), the factor
+                on the bootstrapped value in place of gamma (gamma^m where rew sums m steps).
             demo_rows: the last ``demo_rows`` rows of the batch are demonstrations (see
                 :meth:`actor_loss`).
 
@@ -275,8 +279,9 @@ class DADDPG:
             r[..., 0] += batch["shaping"].transpose(0, 1)
         not_done = (1.0 - batch["done"]).view(1, -1, 1)            # (1, B, 1)
 
+        discount = batch["discount"].view(1, -1, 1) if "discount" in batch else None
         with torch.no_grad():
-            y = self.td_target(r, not_done, o2)
+            y = self.td_target(r, not_done, o2, discount)
         q = self._per_agent(self.critic(self._critic_input(o, a_taken)))
         critic_loss = ((y - q) ** 2).mean(dim=(2, 3)).sum()       # per head and sample, summed over critics
         # The actor climbs the critic as it is before this step's critic update.

@@ -158,11 +158,14 @@ class Trainer:
         self.buffer = ReplayBuffer(config.algo.buffer_size, 2, v.obs_size, v.act_size,
                                    self.agent.num_heads)
         self.sampler = self.buffer
-        if config.her_share > 0:
-            goals = ReachRelabeller if task.success_at == "reach" else TargetRelabeller
-            relabeller = goals(task, task.observes_joint_angles)
-            self.sampler = HindsightSampler(self.buffer, relabeller.achieved, relabeller.relabel,
-                                            config.her_share)
+        if config.her_share > 0 or config.algo.n_step > 1:
+            achieved = relabel = None
+            if config.her_share > 0:
+                goals = ReachRelabeller if task.success_at == "reach" else TargetRelabeller
+                relabeller = goals(task, task.observes_joint_angles)
+                achieved, relabel = relabeller.achieved, relabeller.relabel
+            self.sampler = HindsightSampler(self.buffer, achieved, relabel, config.her_share,
+                                            config.algo.n_step, config.algo.gamma)
         self.potential = shaping_potential(config)      # approach_shaping, carry_shaping
         # far_action_l2, near_random_eps, grip_hold_eps: each arm's box-minus-grip offset
         # in its observation, (3,) columns
@@ -359,8 +362,9 @@ class Trainer:
         reward units: gamma * phi(s') * (1 - done) - phi(s), phi from ``shaping_potential``
         (``approach_shaping``, ``carry_shaping``) on the raw observations (B, A, O) (a success
         ends the episode with phi = 0, so the shaped return differs from the paper's by
-        -phi(s0) only)."""
-        gamma = self.config.algo.gamma
+        -phi(s0) only). With the batch's ``discount`` (B,) of n-step returns, gamma^m in
+        place of gamma: the m steps' terms telescope to gamma^m phi(s_m) - phi(s_t)."""
+        gamma = batch["discount"].unsqueeze(-1) if "discount" in batch else self.config.algo.gamma
         phi, phi2 = self.potential(batch["obs"]), self.potential(batch["next_obs"])  # (B, A)
         return gamma * (1.0 - batch["done"]).unsqueeze(-1) * phi2 - phi
 
@@ -504,6 +508,8 @@ class Trainer:
             batch = self.sampler.sample(self.rng, a.batch_size)
             if demo_rows:
                 demos = self.demos.sample(self.rng, demo_rows)
+                if "discount" in batch:          # demonstrations are one-step transitions
+                    demos["discount"] = torch.full((demo_rows,), a.gamma)
                 batch = {k: torch.cat([batch[k], demos[k]]) for k in batch}
             if self.config.far_action_l2 is not None:
                 batch["penalty_weight"] = self.penalty_weight(batch["obs"])
