@@ -101,7 +101,7 @@ def test_averaged_actors_are_evaluated_beside_without_changing_training(tmp_path
 KILLED_RUN = textwrap.dedent("""
     import sys
     from dualarm.envs.point_mass import TwoPointMassEnv
-    from dualarm.rl import DADDPG, DADDPGConfig
+    from dualarm.rl import DADDPGConfig
     from dualarm.training import TrainConfig, train
     algo = DADDPGConfig(hidden=(32, 32), batch_size=64, updates_per_step=0.5, warmup_steps=300,
                         buffer_size=50_000)
