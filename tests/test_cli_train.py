@@ -208,6 +208,8 @@ def test_train_without_a_config_uses_the_recipe(tmp_path, capsys):
     saved = TrainConfig.load(out / "config.yaml")
     assert saved == TrainConfig.recipe().with_(condition="none", episodes=4, num_envs=4)
     assert saved.her_share == 0.8 and saved.algo.twin_critics and saved.approach_shaping == 1.0
+    assert saved.carry_shaping == 1.0 and saved.algo.twin_min_weight == 0.5
+    assert saved.algo.eval_actor == "average" and saved.algo.policy_average > 0
     assert saved.task_config().observes_joint_angles          # none observes them too
     assert TrainConfig().with_(condition="none").task_config().observes_joint_angles is False
 
