@@ -404,3 +404,34 @@ def test_runs_with_later_starts_are_measured_on_their_evaluations(tmp_path):
     assert none.episodes_to_target.values.tolist() == [300]          # training success: 50
     assert none.max_avg_success.values.tolist() == [0.95]
     assert any("read from the evaluations" in n for n in report.notes)
+
+
+def test_the_averaged_actors_evaluations_are_read_on_request(tmp_path, capsys):
+    """`--actors average` reads eval.csv's average_success_rate (the averaged actors, evaluated
+    beside the run's policy): episodes to target and max success follow that column, and a
+    run without it is an error naming the file and the column."""
+    e = np.arange(1, 401)
+    d = write_run(tmp_path, "none", 0, np.ones(400), 100 * np.ones(400), e,
+                  start_probs=(0.2, 0.2, 0.6))
+    rows = [(100, 0.0, 0.5), (200, 0.5, 0.9), (300, 0.9, 0.95), (400, 0.6, 0.7)]
+    (d / "eval.csv").write_text("episode,success_rate,average_success_rate\n"
+                                + "".join(f"{a},{b},{c}\n" for a, b, c in rows))
+    own = build_report(tmp_path, window=50).conditions["none"]
+    assert own.episodes_to_target.values.tolist() == [300]
+    assert own.final_eval_success.values.tolist() == [0.6]
+    report = build_report(tmp_path, window=50, actors="average")
+    avg = report.conditions["none"]
+    assert avg.episodes_to_target.values.tolist() == [200]
+    assert avg.max_avg_success.values.tolist() == [0.95]
+    assert avg.final_eval_success.values.tolist() == [0.7]
+    assert report.actors == "average" and any("averaged actors" in n for n in report.notes)
+    assert main(["report", str(tmp_path), "-o", str(tmp_path / "rep"), "--window", "50",
+                 "--actors", "average"]) == 0
+    assert "averaged actors" in (tmp_path / "rep" / "table.md").read_text()
+
+    (d / "eval.csv").write_text("episode,success_rate\n100,0.5\n")
+    with pytest.raises(InputError, match="missing required column") as err:
+        build_report(tmp_path, actors="average")
+    assert err.value.column == "average_success_rate" and err.value.source == str(d / "eval.csv")
+    with pytest.raises(InputError, match="actors must be one of"):
+        build_report(tmp_path, actors="target")

@@ -14,7 +14,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     from dualarm.experiments.report import save_report
     from dualarm.experiments.summary import build_report
 
-    report = build_report(args.dir, args.window, args.target)
+    report = build_report(args.dir, args.window, args.target, args.actors)
     print_report(report, save_report(report, args.output or args.dir / "report"))
     return 0
 
@@ -47,4 +47,8 @@ def add_report_command(sub) -> None:
                         help="moving-average window, episodes (default: 100)")
     report.add_argument("--target", type=rate, default=TARGET_SUCCESS, metavar="RATE",
                         help="success rate of 'episodes to target' (default: %(default)s)")
+    report.add_argument("--actors", choices=("policy", "average"), default="policy",
+                        help="evaluations to read: each run's policy (eval.csv success_rate, "
+                             "the default) or the averaged actors evaluated beside it "
+                             "(average_success_rate; runs with algo.policy_average > 0)")
     report.set_defaults(func=cmd_report)

@@ -300,7 +300,7 @@ def save_report(report: Report, out: str | Path) -> Path:
 
 
 def write_report(comparison_dir: str | Path, out: str | Path | None = None, window: int = 100,
-                 target: float = TARGET_SUCCESS) -> Path:
+                 target: float = TARGET_SUCCESS, actors: str = "policy") -> Path:
     """Write the report of a comparison directory: Figs. 6-8 (PNG), table.md, table.csv and
     index.html, each atomically, index.html last.
 
@@ -309,6 +309,7 @@ def write_report(comparison_dir: str | Path, out: str | Path | None = None, wind
         out: output directory (default: ``comparison_dir/report``).
         window: moving-average window, episodes, >= 1.
         target: success rate of "episodes to target", in (0, 1].
+        actors: whose evaluations to read, "policy" or "average" (see ``build_report``).
 
     Returns:
         The path of index.html.
@@ -317,5 +318,5 @@ def write_report(comparison_dir: str | Path, out: str | Path | None = None, wind
         InputError: no run directory, or a run directory with a missing column or a
             non-numeric value (the message names the file and the column).
     """
-    report = build_report(comparison_dir, window, target)
+    report = build_report(comparison_dir, window, target, actors)
     return save_report(report, Path(out) if out is not None else Path(comparison_dir) / "report")

@@ -19,6 +19,11 @@ METRICS_READ = ("episode", "wall_time_s", "return_total", "success")
 #: Columns an eval.csv must have when it has rows.
 EVAL_READ = ("episode", "success_rate")
 
+#: The eval.csv column of each set of actors a report can read: "policy", the run's own
+#: policy (``algo.eval_actor``), and "average", the averaged actors a run with
+#: ``policy_average`` > 0 evaluates beside its own.
+EVAL_SUCCESS_COLUMNS = {"policy": "success_rate", "average": "average_success_rate"}
+
 
 @dataclass(frozen=True, eq=False)
 class Run:
@@ -124,8 +129,12 @@ def _read_columns(path: Path, required: tuple[str, ...]) -> tuple[dict[str, np.n
     return out, notes
 
 
-def load_run(run_dir: str | Path) -> Run:
+def load_run(run_dir: str | Path, actors: str = "policy") -> Run:
     """Read one run directory (config.yaml, metrics.csv, eval.csv if present).
+
+    ``actors`` picks the evaluations read (``EVAL_SUCCESS_COLUMNS``): "policy" the run's
+    policy (``success_rate``), "average" the averaged actors evaluated beside it
+    (``average_success_rate``, which an eval.csv with rows must then have).
 
     Raises:
         InputError: unreadable config, a missing column, a non-numeric or non-finite value,
@@ -149,13 +158,16 @@ def load_run(run_dir: str | Path) -> Run:
     if off.size:
         raise InputError(f"success must be 0 or 1, got {m['success'][off[0]]:g}",
                          source=str(paths.metrics), row=int(off[0]) + 1, column="success")
+    if actors not in EVAL_SUCCESS_COLUMNS:
+        raise InputError(f"actors must be one of {', '.join(EVAL_SUCCESS_COLUMNS)}, got {actors!r}")
+    column = EVAL_SUCCESS_COLUMNS[actors]
     if paths.eval.is_file():
-        e, eval_notes = _read_columns(paths.eval, EVAL_READ)
+        e, eval_notes = _read_columns(paths.eval, ("episode", column))
         notes += eval_notes
     else:
-        e = {name: np.zeros(0) for name in EVAL_READ}
+        e = {name: np.zeros(0) for name in ("episode", column)}
     return Run(path=paths.root, condition=config.condition, seed=config.seed,
                planned_episodes=config.episodes, wall_time_s=m["wall_time_s"],
                return_total=m["return_total"], success=m["success"],
-               eval_episode=e["episode"].astype(int), eval_success=e["success_rate"],
+               eval_episode=e["episode"].astype(int), eval_success=e[column],
                notes=tuple(notes), later_starts=config.uses_start_states)

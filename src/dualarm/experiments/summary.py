@@ -147,6 +147,8 @@ class Report:
             unreached seeds counted as beyond the run, and its 95% seed-bootstrap interval
             (``metrics.median_ratio_ci``), or None when not available.
         notes: remarks a reader must see (partial runs, truncation, flagged means).
+        actors: whose evaluations were read: "policy" (eval.csv ``success_rate``) or
+            "average" (``average_success_rate``, the averaged actors evaluated beside).
     """
 
     source: Path
@@ -157,6 +159,7 @@ class Report:
     ratios: dict[str, dict[tuple[str, str], float | None]]
     median_ratios: dict[str, dict[tuple[str, str], tuple[float, float, float] | None]]
     notes: list[str] = field(default_factory=list)
+    actors: str = "policy"
 
 
 def summarize_condition(condition: str, runs: list[Run], window: int = 100,
@@ -206,7 +209,8 @@ def _first_evaluation_at(run: Run, n: int, target: float) -> int | None:
     return int(run.eval_episode[hit][0]) if hit.any() else None
 
 
-def build_report(comparison_dir: str | Path, window: int = 100, target: float = TARGET_SUCCESS) -> Report:
+def build_report(comparison_dir: str | Path, window: int = 100, target: float = TARGET_SUCCESS,
+                 actors: str = "policy") -> Report:
     """Read every run under ``comparison_dir`` and summarise each condition.
 
     Args:
@@ -214,6 +218,8 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
             lie at most two levels below it (``dualarm compare`` writes ``DIR/runs/<name>/``).
         window: moving-average window, episodes, >= 1.
         target: success rate of "episodes to target", in (0, 1].
+        actors: the evaluations read (``load_run``): "policy", each run's own policy, or
+            "average", the averaged actors its evaluations ran beside it.
 
     Raises:
         InputError: no run directory, or a bad run directory (see ``load_run``).
@@ -229,9 +235,12 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
     if not dirs:
         raise InputError("no run directories (directories with config.yaml and metrics.csv) "
                          "here or up to two levels below", source=str(root))
-    runs = sorted((load_run(d) for d in dirs),
+    runs = sorted((load_run(d, actors) for d in dirs),
                   key=lambda r: (CONDITIONS.index(r.condition), r.seed, str(r.path)))
     notes = []
+    if actors == "average":
+        notes.append("evaluations are the averaged actors' (eval.csv average_success_rate), "
+                     "evaluated beside each run's own policy on the same placements")
     for r in runs:
         where = relative_to_root(r.path, root)
         notes += [f"{where}: {n}" for n in r.notes]
@@ -290,7 +299,8 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
                              f"{'the target' if q == 'episodes_to_target' else 'convergence'}; "
                              "its mean and ratios are over those seeds (marked †)")
     return Report(source=root, window=int(window), target=float(target), runs=runs,
-                  conditions=conditions, ratios=ratios, median_ratios=median_ratios, notes=notes)
+                  conditions=conditions, ratios=ratios, median_ratios=median_ratios, notes=notes,
+                  actors=actors)
 
 
 def relative_to_root(path: Path, root: Path) -> str:
