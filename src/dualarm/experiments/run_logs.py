@@ -134,7 +134,7 @@ def load_run(run_dir: str | Path, actors: str = "policy") -> Run:
 
     ``actors`` picks the evaluations read (``EVAL_SUCCESS_COLUMNS``): "policy" the run's
     policy (``success_rate``), "average" the averaged actors evaluated beside it
-    (``average_success_rate``, which an eval.csv with rows must then have).
+    (``average_success_rate``, which the run's eval.csv must then have).
 
     Raises:
         InputError: unreadable config, a missing column, a non-numeric or non-finite value,
