@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from dualarm.cli.arguments import InputPath, OutputDir, positive_int, rate
+from dualarm.experiments.run_logs import EVAL_SUCCESS_COLUMNS
 from dualarm.task import TARGET_SUCCESS
 
 
@@ -47,7 +48,7 @@ def add_report_command(sub) -> None:
                         help="moving-average window, episodes (default: 100)")
     report.add_argument("--target", type=rate, default=TARGET_SUCCESS, metavar="RATE",
                         help="success rate of 'episodes to target' (default: %(default)s)")
-    report.add_argument("--actors", choices=("policy", "average"), default="policy",
+    report.add_argument("--actors", choices=tuple(EVAL_SUCCESS_COLUMNS), default="policy",
                         help="evaluations to read: each run's policy (eval.csv success_rate, "
                              "the default) or the averaged actors evaluated beside it "
                              "(average_success_rate; runs with algo.policy_average > 0)")

@@ -16,13 +16,13 @@ from dualarm.errors import InputError
 #: Columns a run's metrics.csv must have (the others are not read).
 METRICS_READ = ("episode", "wall_time_s", "return_total", "success")
 
-#: Columns an eval.csv must have when it has rows.
-EVAL_READ = ("episode", "success_rate")
-
 #: The eval.csv column of each set of actors a report can read: "policy", the run's own
 #: policy (``algo.eval_actor``), and "average", the averaged actors a run with
 #: ``policy_average`` > 0 evaluates beside its own.
 EVAL_SUCCESS_COLUMNS = {"policy": "success_rate", "average": "average_success_rate"}
+
+#: Columns an eval.csv must have to be read for its policy (``load_run``'s default).
+EVAL_READ = ("episode", EVAL_SUCCESS_COLUMNS["policy"])
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,6 +144,9 @@ def load_run(run_dir: str | Path, actors: str = "policy") -> Run:
     from dualarm.training.config import TrainConfig
     from dualarm.training.run_dir import RunPaths
 
+    if actors not in EVAL_SUCCESS_COLUMNS:
+        raise InputError(f"actors must be one of {', '.join(EVAL_SUCCESS_COLUMNS)}, got {actors!r}")
+    column = EVAL_SUCCESS_COLUMNS[actors]
     paths = RunPaths(run_dir)
     config = TrainConfig.load(paths.config)
     m, notes = _read_columns(paths.metrics, METRICS_READ)
@@ -158,9 +161,6 @@ def load_run(run_dir: str | Path, actors: str = "policy") -> Run:
     if off.size:
         raise InputError(f"success must be 0 or 1, got {m['success'][off[0]]:g}",
                          source=str(paths.metrics), row=int(off[0]) + 1, column="success")
-    if actors not in EVAL_SUCCESS_COLUMNS:
-        raise InputError(f"actors must be one of {', '.join(EVAL_SUCCESS_COLUMNS)}, got {actors!r}")
-    column = EVAL_SUCCESS_COLUMNS[actors]
     if paths.eval.is_file():
         e, eval_notes = _read_columns(paths.eval, ("episode", column))
         notes += eval_notes

@@ -16,7 +16,7 @@ from dualarm.task import CONDITIONS, TARGET_SUCCESS
 from dualarm.experiments.metrics import (RATIO_PAIRS, Convergence, condition_ratios, convergence,
                                          episodes_to_target, max_average, mean_ci,
                                          median_ratio_ci, trailing_mean)
-from dualarm.experiments.run_logs import Run, find_run_dirs, load_run
+from dualarm.experiments.run_logs import EVAL_SUCCESS_COLUMNS, Run, find_run_dirs, load_run
 
 
 #: The quantities whose ratios between conditions the report gives (the paper quotes all but
@@ -239,8 +239,9 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
                   key=lambda r: (CONDITIONS.index(r.condition), r.seed, str(r.path)))
     notes = []
     if actors == "average":
-        notes.append("evaluations are the averaged actors' (eval.csv average_success_rate), "
-                     "evaluated beside each run's own policy on the same placements")
+        notes.append(f"evaluations are the averaged actors' (eval.csv "
+                     f"{EVAL_SUCCESS_COLUMNS['average']}), evaluated beside each run's own "
+                     "policy on the same placements")
     for r in runs:
         where = relative_to_root(r.path, root)
         notes += [f"{where}: {n}" for n in r.notes]
