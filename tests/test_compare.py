@@ -214,3 +214,12 @@ def test_ray_without_a_shared_filesystem_ships_run_directories(ray_instance, loc
     assert rows(out / "runs" / "multi-seed0" / "metrics.csv") == rows(
         local[0] / "runs" / "multi-seed0" / "metrics.csv")     # the same file's content
     assert not list((out / "runs").glob(".*"))    # no leftovers of the swaps
+
+
+def test_a_new_comparison_without_a_base_trains_the_recipe(tmp_path):
+    comparison = prepare(tmp_path / "cmp", CompareRequest(conditions=("none", "multi"), seeds=(3,)))
+    recipe = TrainConfig.recipe()
+    assert comparison.episodes == recipe.episodes == 10000
+    assert comparison.run_config("none", 3) == recipe.with_(condition="none", seed=3, constraints=None)
+    assert comparison.run_config("multi", 3).algo == recipe.algo       # twin critics, averaged actors...
+    assert load_manifest(tmp_path / "cmp").base == comparison.base       # recorded as such

@@ -43,3 +43,41 @@ def test_pipeline_stops_at_the_failing_step_and_names_it(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "stopped at step 1" in err and "missing" in err
     assert not (out / "runs").exists()
+
+
+def test_pipeline_defaults_fill_a_new_comparison_and_leave_an_existing_one_alone(tmp_path):
+    from dualarm.experiments.compare import CompareRequest, prepare
+    from dualarm.experiments.pipeline import (DEFAULT_EPISODES, DEFAULT_SEEDS, pipeline_request,
+                                              planned_grid)
+
+    out = tmp_path / "pipe"
+    new = pipeline_request(out, CompareRequest())
+    assert (new.seeds, new.episodes) == (DEFAULT_SEEDS, DEFAULT_EPISODES) == ((0,), 6000)
+    assert planned_grid(out, new) == (("none", "single", "multi"), (0,))
+    given = pipeline_request(out, CompareRequest(seeds=(4, 5), episodes=30))
+    assert (given.seeds, given.episodes) == ((4, 5), 30)
+    prepare(out, CompareRequest(conditions=("none",), seeds=(1, 2), episodes=10000))
+    # an existing comparison keeps its grid and budget (6000 would shorten its runs)
+    assert pipeline_request(out, CompareRequest()) == CompareRequest()
+    assert planned_grid(out, CompareRequest()) == (("none",), (1, 2))
+    assert planned_grid(out, CompareRequest(conditions=("multi",), seeds=(0,))) == (
+        ("none", "multi"), (0, 1, 2))
+
+
+def test_pipeline_trains_every_run_at_once_by_default(tmp_path, monkeypatch, capsys):
+    import dualarm.experiments.backends as backends
+
+    asked = []
+
+    def refuse(kind, workers=None, address=None):
+        asked.append(workers)
+        raise backends.InputError("stop here")
+
+    monkeypatch.setattr(backends, "make_backend", refuse)
+    monkeypatch.setattr("os.cpu_count", lambda: 2)
+    assert main(["pipeline", "-o", str(tmp_path / "a")]) == 2
+    assert main(["pipeline", "-o", str(tmp_path / "b"), "--seeds", "0,1"]) == 2
+    assert main(["pipeline", "-o", str(tmp_path / "c"), "--conditions", "none"]) == 2
+    assert main(["pipeline", "-o", str(tmp_path / "d"), "--workers", "1"]) == 2
+    assert asked == [3, 6, 2, 1]
+    assert "stop here" in capsys.readouterr().err

@@ -435,3 +435,56 @@ def test_the_averaged_actors_evaluations_are_read_on_request(tmp_path, capsys):
     assert err.value.column == "average_success_rate" and err.value.source == str(d / "eval.csv")
     with pytest.raises(InputError, match="actors must be one of"):
         build_report(tmp_path, actors="target")
+
+
+# ----------------------------------------------------------------------------- findings
+def step_run(root, condition, seed, last_fail, n=N):
+    """Training success 0 up to ``last_fail``, 1 after; the return is 100 x success."""
+    success = (np.arange(1, n + 1) > last_fail).astype(float)
+    return write_run(root, condition, seed, success, 100 * success, np.arange(1, n + 1))
+
+
+def test_findings_say_guidance_is_faster_only_when_the_seeds_show_it(comparison, tmp_path, capsys):
+    from dualarm.experiments.findings import findings
+
+    # three seeds, every multi and single seed ahead of every none seed: faster at 95 %
+    r = build_report(comparison, window=WINDOW)
+    lines = findings(r)
+    reached = [r.conditions[c].episodes_to_target.values for c in ("none", "single", "multi")]
+    assert lines[0].startswith("Every condition reached success 0.85")
+    assert f"multi median {np.median(reached[2]):,.0f} episodes, 3 of 3 seeds" in lines[0]
+    ratio = np.median(reached[2]) / np.median(reached[0])
+    multi_none = next(x for x in lines if x.startswith("multi/none"))
+    assert multi_none.startswith(f"multi/none {ratio:.2f}: multi needed {1 - ratio:.0%} fewer")
+    assert "(paper: 0.58)" in multi_none and "guidance faster at 95 %" in multi_none
+    # overlapping seeds: the interval includes 1, and the sentence says so
+    mixed = tmp_path / "mixed"
+    for seed, (m, n) in enumerate([(100, 150), (300, 250), (200, 350), (400, 200)]):
+        step_run(mixed, "multi", seed, m)
+        step_run(mixed, "none", seed, n)
+    lines = findings(build_report(mixed, window=WINDOW))
+    assert [x.split(" ")[0] for x in lines[1:]] == ["multi/none"]       # no single: no line
+    assert "which includes 1: no difference measurable" in lines[1]
+    # one seed each: a single draw, and how to measure it
+    one = tmp_path / "one"
+    step_run(one, "multi", 0, 100)
+    step_run(one, "none", 0, 300)
+    assert main(["report", str(one), "--window", str(WINDOW)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("Every condition reached success 0.85: none at ")
+    assert "a single draw rather than a measurement" in out[1] and "--seeds 0,1,2,3,4" in out[2]
+    md = (one / "report" / "table.md").read_text()
+    assert md.index("## Findings") < md.index("| condition |") and out[1] in md
+    assert "<h2>Findings</h2>" in (one / "report" / "index.html").read_text()
+
+
+def test_findings_name_the_condition_that_did_not_learn(tmp_path):
+    from dualarm.experiments.findings import findings
+
+    for seed in range(2):
+        step_run(tmp_path, "multi", seed, 100)
+        step_run(tmp_path, "single", seed, N)                       # never succeeds
+    lines = findings(build_report(tmp_path, window=WINDOW))
+    assert lines[0].startswith("Reached success 0.85: multi median")
+    assert f"Not reached: single (0 of 2 seeds in {N:,} episodes)" in lines[0]
+    assert lines[1] == "multi/single: single did not reach success 0.85 in most seeds (paper: 0.77)."

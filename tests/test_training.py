@@ -242,17 +242,20 @@ def test_daddpg_learns_the_baxter_reach_to_80_percent_without_demonstrations(tmp
 
 @pytest.mark.paper_scale
 def test_daddpg_learns_the_whole_task_without_demonstrations(tmp_path):
-    """Reach, grasp and align from the normal reset, paper's reward and constants, no
-    demonstrations: configs/td3-curriculum.yaml (twin critics, hindsight targets, a reverse
-    curriculum over start states, random actions 30 %). Measured with seed 0
-    (docs/learning-runs.md, round 6, S17): first evaluation success at 8,800 episodes, 0.50 at
-    10,000, 0.92 at 11,280, 1.00 at 11,520; about 25 minutes on one core."""
-    fields = yaml.safe_load((ROOT / "configs" / "td3-curriculum.yaml").read_text())
-    config = TrainConfig.from_dict({**fields, "episodes": 12000, "seed": 0})
+    """Reach, grasp and align from the normal reset, the paper's reward and constants, no
+    demonstrations: the recipe (src/dualarm/data/recipe.yaml; what `dualarm train` and
+    `dualarm pipeline` run), condition multi, seed 0, evaluated with its policy (the averaged
+    actors) on the 50 fixed placements. Measured (docs/carry-runs, multi-seed0): 0.85 first
+    at 4,320 episodes, 0.98 at 10,000; in the 3 x 5 comparison every run reached 0.85 by 6,720
+    episodes and 14 of 15 by 5,600, so the budget is 6,000, about 15-25 minutes on one core.
+    It must also keep what it learned: the last evaluation within 0.1 of the best (issue 14's
+    target)."""
+    config = TrainConfig.recipe().with_(condition="multi", episodes=6000, seed=0)
     train(config, tmp_path / "run", progress=False)
     success = [float(r["success_rate"]) for r in rows(tmp_path / "run" / "eval.csv")]
     assert success[0] == 0.0                                  # it starts unable
     assert max(success) >= 0.85, success
+    assert success[-1] >= max(success) - 0.1, success
 
 
 def test_daddpg_with_demonstrations_learns_the_baxter_reach_to_80_percent(tmp_path):

@@ -47,15 +47,17 @@ def compare_request(args: argparse.Namespace, constraints_dir=None):
         constraints_dir=constraints_dir)
 
 
-def grid_options(p: argparse.ArgumentParser) -> None:
+def grid_options(p: argparse.ArgumentParser, seeds: str = "0,1,2",
+                 workers: str = "the CPU count") -> None:
     """The options that say which runs to train and where: shared by compare and pipeline,
-    which hands them on to compare unchanged (None: the comparison's, or the default)."""
+    which hands them on to compare (None: the comparison's, or the command's default, which
+    ``seeds`` and ``workers`` name in the help)."""
     p.add_argument("--conditions", metavar="C1,C2,...",
                    help="among none, single, multi (default: all three, or the comparison's)")
     p.add_argument("--seeds", metavar="S1,S2,...",
-                   help="seeds, integers >= 0 (default: 0,1,2, or the comparison's)")
+                   help=f"seeds, integers >= 0 (default: {seeds}, or the comparison's)")
     p.add_argument("--workers", type=positive_int, metavar="W",
-                   help="runs at a time (default local: the CPU count; ray: as many as the "
+                   help=f"runs at a time (default local: {workers}; ray: as many as the "
                         "cluster has CPUs for)")
     p.add_argument("--backend", choices=("local", "ray"), default="local",
                    help="local worker processes, or Ray tasks (default: local)")
@@ -64,9 +66,8 @@ def grid_options(p: argparse.ArgumentParser) -> None:
                         "a local Ray instance)")
     p.add_argument("--config", type=InputPath, metavar="BASE.yaml",
                    help="TrainConfig fields for every run (as `dualarm train --config`); "
-                        "condition, seed and constraints are set per run. Default: "
-                        "TrainConfig's defaults, the paper's plain DDPG; the recipe that "
-                        "`dualarm train` uses is src/dualarm/data/recipe.yaml")
+                        "condition, seed and constraints are set per run. Default: the recipe, "
+                        "src/dualarm/data/recipe.yaml, as `dualarm train` uses it")
 
 
 def add_compare_command(sub) -> None:
@@ -80,8 +81,8 @@ def add_compare_command(sub) -> None:
                     "runs. See docs/compare.md.")
     grid_options(p)
     p.add_argument("--episodes", type=positive_int, metavar="N",
-                   help="training episodes per run (default: the --config's, 3000, or the "
-                        "comparison's; a larger value extends the runs)")
+                   help="training episodes per run (default: the --config's, the recipe's 10000, "
+                        "or the comparison's; a larger value extends the runs)")
     p.add_argument("--constraints-dir", type=InputPath, metavar="DIR",
                    help="folder with single.yaml and multi.yaml (`dualarm constraints extract` "
                         "output; default: the shipped constraint files)")

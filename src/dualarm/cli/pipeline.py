@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -17,12 +18,20 @@ def cmd_pipeline(args: argparse.Namespace) -> int:
     that fails. Exit status 2 for bad input (the step's error, from ``main``), 1 when a run
     failed, 130 when interrupted."""
     from dualarm.experiments.backends import make_backend
-    from dualarm.experiments.pipeline import PipelineStopped, run_pipeline
+    from dualarm.experiments.pipeline import (PipelineStopped, pipeline_request, planned_grid,
+                                              run_pipeline)
 
-    backend = make_backend(args.backend, args.workers, args.ray_address)
+    request = pipeline_request(args.output, compare_request(args))
+    workers = args.workers
+    if workers is None and args.backend == "local":
+        # every run at once, even past the core count: the runs are equally long, so R runs
+        # sharing C cores end after R/C run-times where C at a time take ceil(R/C)
+        conditions, seeds = planned_grid(args.output, request)
+        workers = max(os.cpu_count() or 1, len(conditions) * len(seeds))
+    backend = make_backend(args.backend, workers, args.ray_address)
     again = "run the same command again to resume"
     try:
-        result = run_pipeline(args.output, compare_request(args), backend, args.demo_dir)
+        result = run_pipeline(args.output, request, backend, args.demo_dir)
     except KeyboardInterrupt:
         print(f"\nstopped; {again} the runs in {args.output}", file=sys.stderr)
         return 130
@@ -46,13 +55,17 @@ def add_pipeline_command(sub) -> None:
         description="The whole experiment on built-in data: extract the single (C1) and multi "
                     "(C2&C3) constraints from the shipped demonstrations, train every "
                     "condition x seed (`dualarm compare`), and write the report (`dualarm "
-                    "report`). Run it again to resume. The defaults are a short first run; "
-                    "--episodes 10000 reproduces the paper's budget.")
+                    "report`). Run it again to resume. Every run uses the recipe "
+                    "(src/dualarm/data/recipe.yaml) unless --config says otherwise. The defaults "
+                    "(one seed per condition, 6000 episodes, all runs at once) are long enough "
+                    "for every condition to learn; --episodes 10000 --seeds 0,1,2,3,4 is the "
+                    "full reproduction.")
     p.add_argument("-o", "--output", type=OutputDir, default=Path("out/pipeline"), metavar="DIR",
                    help="output directory (default: out/pipeline)")
-    p.add_argument("--episodes", type=positive_int, default=200, metavar="N",
-                   help="training episodes per run (default: 200, about 12 minutes on 2 cores)")
-    grid_options(p)
+    p.add_argument("--episodes", type=positive_int, metavar="N",
+                   help="training episodes per run (default: 6000 for a new comparison, or the "
+                        "comparison's; a larger value extends the runs)")
+    grid_options(p, seeds="0", workers="as many as there are runs")
     p.add_argument("--demo-dir", type=InputPath, metavar="DIR",
                    help=f"demonstrations with {LABELS_NAME} (default: the shipped ones)")
     p.set_defaults(func=cmd_pipeline)

@@ -21,9 +21,13 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def print_report(report, index) -> None:
-    """One line per condition on stdout, the report's notes on stderr, and where it is."""
+    """The findings, then one line per condition, on stdout; the report's notes on stderr;
+    and where it is."""
+    from dualarm.experiments.findings import findings
     from dualarm.experiments.report import summary_rows
 
+    for line in findings(report):
+        print(line)
     header, rows = summary_rows(report)
     for row in rows:
         print("; ".join(f"{h}: {v}" for h, v in zip(header[:8], row[:8])))

@@ -52,7 +52,8 @@ class CompareRequest:
         seeds: seeds to include (added to the manifest's), each >= 0.
         episodes: training episodes per run; may grow, never shrink, an existing comparison.
         base: base TrainConfig of every run (its condition, seed and constraints are ignored,
-            its episodes used only when ``episodes`` is None for a new comparison).
+            its episodes used only when ``episodes`` is None for a new comparison); None for
+            a new comparison is the recipe (``TrainConfig.recipe()``).
         base_source: where ``base`` came from (named in conflict messages).
         constraints_dir: a folder with ``single.yaml`` and/or ``multi.yaml``; None uses the
             shipped files (new comparison) or the comparison's own copies.
@@ -284,7 +285,7 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
         if runs.is_dir() and any(runs.iterdir()):
             raise InputError(f"{runs} holds runs but {root} has no {MANIFEST}: not a comparison "
                              "directory of this version; choose another -o")
-        base = request.base or TrainConfig()
+        base = request.base or TrainConfig.recipe()
         comparison = Comparison(
             root=root, id=secrets.token_hex(8),
             conditions=_conditions(request.conditions or CONDITIONS, "--conditions"),

@@ -15,6 +15,7 @@ import math
 from pathlib import Path
 
 from dualarm.atomic import atomic_open
+from dualarm.experiments.findings import findings
 from dualarm.experiments.metrics import RATIO_PAIRS
 from dualarm.experiments.summary import (QUANTITY_NAMES, RATIO_QUANTITIES, Report, SeedStat, build_report,
                                          paper_ratio, paper_value, ratio_note, relative_to_root)
@@ -246,8 +247,11 @@ def markdown(report: Report) -> str:
     """``table.md``: the per-condition table, the ratios, the notes and the definitions."""
     parts = [f"# Comparison report: {report.source}", "",
              f"Moving average over {report.window} episodes, success target {report.target:g}, "
-             "mean ± 95% CI over seeds (k/n: seeds that reached the criterion).", "",
-             _md_table(*summary_rows(report)), "", "## Ratios between conditions", "",
+             "mean ± 95% CI over seeds (k/n: seeds that reached the criterion).", ""]
+    found = findings(report)
+    if found:
+        parts += ["## Findings", ""] + [f"- {line}" for line in found] + [""]
+    parts += [_md_table(*summary_rows(report)), "", "## Ratios between conditions", "",
              _md_table(*ratio_rows(report)), "", "## Runs", "", _md_table(*run_rows(report))]
     if report.notes:
         parts += ["", "## Notes", ""] + [f"- {n}" for n in report.notes]
@@ -266,8 +270,11 @@ def html_page(report: Report) -> str:
             ("fig8", "Fig. 8. Training time (and episodes) to convergence of the return curve")]
     body = [f"<h1>Comparison report</h1><p>{html.escape(str(report.source))}: "
             f"{len(report.runs)} runs. Moving average over {report.window} episodes, success "
-            f"target {report.target:g}, mean ± 95% CI over seeds.</p>",
-            "<h2>Summary</h2>", _html_table(*summary_rows(report)),
+            f"target {report.target:g}, mean ± 95% CI over seeds.</p>"]
+    found = findings(report)
+    if found:
+        body += ["<h2>Findings</h2><ul>"] + [f"<li>{html.escape(x)}</li>" for x in found] + ["</ul>"]
+    body += ["<h2>Summary</h2>", _html_table(*summary_rows(report)),
             "<h2>Ratios between conditions</h2>", _html_table(*ratio_rows(report))]
     if report.notes:
         body += ["<h2>Notes</h2><ul>"] + [f"<li>{html.escape(n)}</li>" for n in report.notes]
