@@ -56,6 +56,9 @@ def test_pipeline_defaults_fill_a_new_comparison_and_leave_an_existing_one_alone
     assert planned_grid(out, new) == (("none", "single", "multi"), (0,))
     given = pipeline_request(out, CompareRequest(seeds=(4, 5), episodes=30))
     assert (given.seeds, given.episodes) == ((4, 5), 30)
+    from dualarm.training import TrainConfig
+    with_base = pipeline_request(out, CompareRequest(base=TrainConfig(episodes=40)))
+    assert (with_base.seeds, with_base.episodes) == ((0,), None)     # the base's 40 stand
     prepare(out, CompareRequest(conditions=("none",), seeds=(1, 2), episodes=10000))
     # an existing comparison keeps its grid and budget (6000 would shorten its runs)
     assert pipeline_request(out, CompareRequest()) == CompareRequest()

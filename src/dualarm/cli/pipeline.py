@@ -63,8 +63,8 @@ def add_pipeline_command(sub) -> None:
     p.add_argument("-o", "--output", type=OutputDir, default=Path("out/pipeline"), metavar="DIR",
                    help="output directory (default: out/pipeline)")
     p.add_argument("--episodes", type=positive_int, metavar="N",
-                   help="training episodes per run (default: 6000 for a new comparison, or the "
-                        "comparison's; a larger value extends the runs)")
+                   help="training episodes per run (default for a new comparison: 6000, or the "
+                        "--config's; then the comparison's; a larger value extends the runs)")
     grid_options(p, seeds="0", workers="as many as there are runs")
     p.add_argument("--demo-dir", type=InputPath, metavar="DIR",
                    help=f"demonstrations with {LABELS_NAME} (default: the shipped ones)")

@@ -33,7 +33,8 @@ DEFAULT_EPISODES = 6000
 
 def pipeline_request(output: str | os.PathLike, request: CompareRequest) -> CompareRequest:
     """``request`` with the pipeline's ``DEFAULT_SEEDS`` and ``DEFAULT_EPISODES`` where it
-    leaves them open, for a new comparison in ``output``; one that exists keeps its own
+    leaves them open, for a new comparison in ``output`` (``DEFAULT_EPISODES`` only without
+    a ``base``, whose own episodes count then, as in ``compare``); one that exists keeps its own
     (None there means "as in the manifest", and its episodes are never shortened).
 
     Raises:
@@ -41,8 +42,11 @@ def pipeline_request(output: str | os.PathLike, request: CompareRequest) -> Comp
     """
     if load_manifest(output) is not None:
         return request
+    episodes = request.episodes
+    if episodes is None and request.base is None:     # a base config's own episodes stand
+        episodes = DEFAULT_EPISODES
     return replace(request, seeds=request.seeds if request.seeds is not None else DEFAULT_SEEDS,
-                   episodes=request.episodes if request.episodes is not None else DEFAULT_EPISODES)
+                   episodes=episodes)
 
 
 def planned_grid(output: str | os.PathLike,
