@@ -65,7 +65,7 @@ def add_pipeline_command(sub) -> None:
     p.add_argument("--episodes", type=positive_int, metavar="N",
                    help="training episodes per run (default for a new comparison: 6000, or the "
                         "--config's; then the comparison's; a larger value extends the runs)")
-    grid_options(p, seeds="0", workers="as many as there are runs")
+    grid_options(p, seeds="0", workers="as many as there are runs, at least the CPU count")
     p.add_argument("--demo-dir", type=InputPath, metavar="DIR",
                    help=f"demonstrations with {LABELS_NAME} (default: the shipped ones)")
     p.set_defaults(func=cmd_pipeline)
