@@ -36,7 +36,7 @@ MANIFEST_FORMAT = "dualarm-comparison"
 MANIFEST_VERSION = 1
 __all__ = ["CompareRequest", "Comparison", "CompareResult", "RunPlan", "prepare", "load_manifest",
            "save_manifest", "run_state", "logged_episodes", "run_comparison", "compare",
-           "task_for", "parse_conditions", "parse_seeds", "differences", "base_dict"]
+           "task_for", "parse_conditions", "parse_seeds", "differences", "base_dict", "merged_grid"]
 
 #: TrainConfig fields set per run (not part of the comparison's base config).
 PER_RUN = ("condition", "seed", "episodes", "constraints")
@@ -247,6 +247,23 @@ def _seeds(values, where: str) -> tuple[int, ...]:
     return tuple(sorted(set(values)))
 
 
+def merged_grid(existing: "Comparison | None",
+                request: CompareRequest) -> tuple[tuple[str, ...], tuple[int, ...]]:
+    """The (conditions, seeds) of the comparison ``prepare`` makes of ``request``: for a new
+    one (``existing`` None) the request's, by default every condition and ``DEFAULT_SEEDS``;
+    for an existing one its own joined with the request's. Conditions in ``CONDITIONS``
+    order, seeds sorted.
+
+    Raises:
+        InputError: a condition or seed is invalid (named as --conditions / --seeds).
+    """
+    if existing is None:
+        return (_conditions(request.conditions or CONDITIONS, "--conditions"),
+                _seeds(request.seeds if request.seeds is not None else DEFAULT_SEEDS, "--seeds"))
+    return (_conditions(set(existing.conditions) | set(request.conditions or ()), "--conditions"),
+            _seeds(set(existing.seeds) | set(request.seeds or ()), "--seeds"))
+
+
 def _episodes(value, where: str) -> int:
     if not isinstance(value, int) or isinstance(value, bool) or value < 1:
         raise InputError(f"{where}: episodes must be an integer >= 1, got {value!r}")
@@ -286,10 +303,9 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
             raise InputError(f"{runs} holds runs but {root} has no {MANIFEST}: not a comparison "
                              "directory of this version; choose another -o")
         base = request.base or TrainConfig.recipe()
+        conditions, seeds = merged_grid(None, request)
         comparison = Comparison(
-            root=root, id=secrets.token_hex(8),
-            conditions=_conditions(request.conditions or CONDITIONS, "--conditions"),
-            seeds=_seeds(request.seeds if request.seeds is not None else DEFAULT_SEEDS, "--seeds"),
+            root=root, id=secrets.token_hex(8), conditions=conditions, seeds=seeds,
             episodes=request.episodes or base.episodes,
             base=TrainConfig.from_dict(base_dict(base), where=request.base_source),
             constraints_dir=given_dir)
@@ -308,10 +324,9 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
         if given_dir is not None and existing.constraints_dir is None:
             raise InputError(f"field 'constraints_dir': the comparison uses the shipped constraint "
                              f"files, not --constraints-dir {given_dir}", source=where)
+        conditions, seeds = merged_grid(existing, request)
         comparison = Comparison(
-            root=root, id=existing.id,
-            conditions=_conditions(set(existing.conditions) | set(request.conditions or ()), "--conditions"),
-            seeds=_seeds(set(existing.seeds) | set(request.seeds or ()), "--seeds"),
+            root=root, id=existing.id, conditions=conditions, seeds=seeds,
             episodes=max(existing.episodes, request.episodes or 0),
             base=existing.base, constraints_dir=existing.constraints_dir)
 

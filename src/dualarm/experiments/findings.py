@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from dualarm.experiments.summary import Report, paper_ratio
 from dualarm.task import TARGET_SUCCESS
 
@@ -32,12 +34,12 @@ def _reached_line(report: Report) -> str:
     parts, missing = [], []
     for c, s in report.conditions.items():
         st = s.episodes_to_target
-        values = sorted(v for v in st.values if math.isfinite(v))
-        if not values:
+        if st.reached == 0:
             missing.append(f"{c} (0 of {st.seeds} seeds in {s.episodes:,} episodes)")
             continue
-        med = _median_with_unreached(st.values)
-        where = (f"at {_episodes(values[0])} episodes" if st.seeds == 1 else
+        # over all seeds, an unreached one beyond the run, as Report.median_ratios counts it
+        med = float(np.median(np.where(np.isnan(st.values), np.inf, st.values)))
+        where = (f"at {_episodes(med)} episodes" if st.seeds == 1 else
                  f"median {_median_text(med)} episodes, {st.reached} of {st.seeds} seeds")
         parts.append(f"{c} {where}")
     if not parts:
@@ -47,13 +49,6 @@ def _reached_line(report: Report) -> str:
     if missing:
         line += " Not reached: " + "; ".join(missing) + "."
     return line
-
-
-def _median_with_unreached(values) -> float:
-    """Median over all seeds, an unreached seed (NaN) counted as beyond the run (inf)."""
-    v = sorted(math.inf if not math.isfinite(x) else x for x in values)
-    n = len(v)
-    return v[n // 2] if n % 2 else (v[n // 2 - 1] + v[n // 2]) / 2
 
 
 def _median_text(x: float) -> str:

@@ -14,10 +14,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from dualarm.constraints.extraction import constraints_from_folder
-from dualarm.experiments.compare import CompareRequest, CompareResult, compare, load_manifest
+from dualarm.experiments.compare import (CompareRequest, CompareResult, compare, load_manifest,
+                                         merged_grid)
 from dualarm.experiments.report import save_report
 from dualarm.experiments.summary import Report, build_report
-from dualarm.task import CONDITIONS
 
 #: (condition, segment spec) of the constraint files the comparison needs (paper: C1, C2&C3).
 CONSTRAINT_SETS = (("single", "reach+grasp+align"), ("multi", "reach+grasp,align"))
@@ -51,16 +51,9 @@ def pipeline_request(output: str | os.PathLike, request: CompareRequest) -> Comp
 
 def planned_grid(output: str | os.PathLike,
                  request: CompareRequest) -> tuple[tuple[str, ...], tuple[int, ...]]:
-    """The (conditions, seeds) the comparison in ``output`` will hold after ``request``,
-    after ``pipeline_request``: the manifest's grid joined with the request's, as
-    ``compare`` merges them."""
-    existing = load_manifest(output)
-    conditions = set(request.conditions or (() if existing else CONDITIONS))
-    seeds = set(request.seeds or (() if existing else DEFAULT_SEEDS))
-    if existing is not None:
-        conditions |= set(existing.conditions)
-        seeds |= set(existing.seeds)
-    return tuple(c for c in CONDITIONS if c in conditions), tuple(sorted(seeds))
+    """The (conditions, seeds) the comparison in ``output`` will hold after ``request``
+    (after ``pipeline_request``), as ``compare`` merges them (``merged_grid``)."""
+    return merged_grid(load_manifest(output), request)
 
 
 class PipelineStopped(Exception):
