@@ -368,6 +368,8 @@ def test_update_flops_counts_the_matmuls():
     assert agent.update_flops(10) == 10 * (4 * fa + 6 * fc)
     twins = small_agent(twin_critics=True)                 # the actor pass runs the first twins only
     assert twins.update_flops(10) == 10 * (4 * fa + 4 * 2 * fc + 2 * fc)
+    delayed = small_agent(policy_delay=2)                 # one actor pass per two updates
+    assert delayed.update_flops(10) == 10 * (fa + 4 * fc + (3 * fa + 2 * fc) / 2)
 
 
 def test_normalizer_matches_numpy_and_clips():
@@ -572,3 +574,28 @@ def test_exploring_actions_hold_the_grip_with_grip_hold_eps():
     c = agent.act(obs, rng, explore=True, hold_eps=eps)
     assert np.abs(c[:, 0, 1] - policy[:, 0, 1]).max() < 0.6               # agent 0: noise only
     assert not np.isin(c[:, 1, 2], a[:, 1, 2]).any()                      # agent 1: new holds
+
+
+def test_policy_delay_steps_the_actors_at_every_dth_update_and_the_critics_at_every_one():
+    """TD3's delayed policy updates: with policy_delay 2 the actors change at updates 1, 3,
+    ... and not at 2, 4; the critics change at every update; the first update is the same
+    as without the delay; "actor_loss" is reported only when the actors stepped."""
+    delayed, plain = small_agent(policy_delay=2), small_agent()
+    batch = random_batch()
+
+    def weights(net):
+        return [p.detach().clone() for p in net.parameters()]
+
+    out_delayed, out_plain = delayed.update(batch), plain.update(batch)
+    assert out_delayed == pytest.approx(out_plain, rel=1e-6)
+    for pd, pp in zip(delayed.actor.parameters(), plain.actor.parameters()):
+        torch.testing.assert_close(pd, pp)
+    for update in (2, 3, 4):
+        actor, critic = weights(delayed.actor), weights(delayed.critic)
+        out = delayed.update(random_batch(seed=update))
+        actor_moved = any(not torch.equal(a, p) for a, p in zip(actor, delayed.actor.parameters()))
+        critic_moved = any(not torch.equal(c, p) for c, p in zip(critic, delayed.critic.parameters()))
+        assert critic_moved
+        assert actor_moved == (update % 2 == 1) == ("actor_loss" in out)
+    with pytest.raises(ValueError, match="policy_delay"):
+        DADDPGConfig(policy_delay=0)

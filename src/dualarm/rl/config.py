@@ -120,6 +120,12 @@ class DADDPGConfig:
     targets relabel every step of the n (Yang et al. 2021). 1: the paper's Eq. 13."""
     updates_per_step: float = 0.5
     """Gradient updates per joint environment step (the update-to-data ratio)."""
+    policy_delay: int = 1
+    """The actors take a gradient step at every ``policy_delay``-th update, the critics at
+    every one (TD3's delayed policy updates, Fujimoto et al. 2018, who use 2: the actor
+    climbs a critic that has had more steps to settle). The actor's pass is about a quarter
+    of an update's cost. The target networks and averaged actors move at every update, so
+    ``tau`` and ``policy_average`` keep their meaning per update. 1: every update."""
     eval_actor: str = "online"
     """The actors the deterministic policy acts with (evaluations, the best policy file,
     ``dualarm eval/play/export``; the curriculum's probes always act with the online actors,
@@ -151,6 +157,7 @@ class DADDPGConfig:
             "q_clip": self.q_clip >= 0, "target_noise": self.target_noise >= 0,
             "twin_min_weight": 0 <= self.twin_min_weight <= 1 and (self.twin_critics or self.twin_min_weight == 1),
             "updates_per_step": self.updates_per_step >= 0, "n_step": self.n_step >= 1,
+            "policy_delay": self.policy_delay >= 1,
             "demo_batch_size": self.demo_batch_size >= 0, "bc_weight": self.bc_weight >= 0,
             "warmup_steps": self.warmup_steps >= 0, "eval_actor": self.eval_actor in EVAL_ACTORS,
             "policy_average": 0 <= self.policy_average <= 1,

@@ -264,7 +264,8 @@ class DADDPG:
                 :meth:`actor_loss`).
 
         Returns:
-            {"critic_loss", "actor_loss", "q_mean"} summed or averaged over agents.
+            {"critic_loss", "actor_loss", "q_mean"} summed or averaged over agents;
+            "actor_loss" only at the updates that step the actors (``policy_delay``).
 
         Raises:
             NonFiniteLoss: a loss is NaN or infinite (no parameter was changed).
@@ -284,11 +285,15 @@ class DADDPG:
             y = self.td_target(r, not_done, o2, discount)
         q = self._per_agent(self.critic(self._critic_input(o, a_taken)))
         critic_loss = ((y - q) ** 2).mean(dim=(2, 3)).sum()       # per head and sample, summed over critics
-        # The actor climbs the critic as it is before this step's critic update.
-        weight = batch.get("penalty_weight")
-        if weight is not None:
-            weight = weight.transpose(0, 1).unsqueeze(-1)          # (A, B, 1)
-        actor_loss = self.actor_loss(o, q, a_taken, demo_rows, weight)
+        # The actor climbs the critic as it is before this step's critic update; with
+        # policy_delay d, only at every d-th update (TD3's delayed policy updates).
+        step_actors = self.updates % self.config.policy_delay == 0
+        actor_loss = torch.zeros(())
+        if step_actors:
+            weight = batch.get("penalty_weight")
+            if weight is not None:
+                weight = weight.transpose(0, 1).unsqueeze(-1)      # (A, B, 1)
+            actor_loss = self.actor_loss(o, q, a_taken, demo_rows, weight)
 
         if not (torch.isfinite(critic_loss) and torch.isfinite(actor_loss)):
             raise NonFiniteLoss(f"non-finite loss at update {self.updates + 1}: critic "
@@ -299,13 +304,16 @@ class DADDPG:
         # does not reach the actor's: one backward pass gives both gradients.
         (critic_loss + actor_loss).backward()
         self._clip(self.critic)
-        self._clip(self.actor)
         self.critic_opt.step()
-        self.actor_opt.step()
+        if step_actors:
+            self._clip(self.actor)
+            self.actor_opt.step()
         self.soft_update()
         self.updates += 1
-        return {"critic_loss": critic_loss.item(), "actor_loss": actor_loss.item(),
-                "q_mean": self.q_total(q[0]).mean().item()}
+        out = {"critic_loss": critic_loss.item(), "q_mean": self.q_total(q[0]).mean().item()}
+        if step_actors:
+            out["actor_loss"] = actor_loss.item()
+        return out
 
     def _clip(self, net: torch.nn.Module) -> None:
         """Scale each agent's gradients so that their global norm is at most grad_clip."""
@@ -322,13 +330,16 @@ class DADDPG:
 
         Critic: target actor and target critic forward, critic forward and backward.
         Actor: actor forward and backward, the first twins' forward and input-gradient backward
-        (weight gradients of the critic are not computed in the actor pass).
+        (weight gradients of the critic are not computed in the actor pass), averaged over
+        the ``policy_delay`` updates that share one actor pass.
         """
         b = batch_size or self.config.batch_size
         fa, fc = self.actor.flops_per_sample(), self.critic.flops_per_sample()  # all stacks
-        # target actor and critic; critic forward and backward; actor forward and backward;
-        # the first twins' forward and input gradient in the actor pass
-        return b * (fa + fc + 3 * fc + 3 * fa + 2 * fc // self.critics_per_agent)
+        # target actor and critic; critic forward and backward
+        critic_pass = fa + fc + 3 * fc
+        # actor forward and backward; the first twins' forward and input gradient
+        actor_pass = 3 * fa + 2 * fc // self.critics_per_agent
+        return b * (critic_pass + actor_pass / self.config.policy_delay)
 
     # -------------------------------------------------------- saving/loading
     _PARTS = ("actor", "critic", "actor_target", "critic_target", "actor_opt", "critic_opt",

@@ -574,8 +574,9 @@ class Trainer:
             w.add_scalar("train/return_total", float(row["return_total"]), row["episode"])
             w.add_scalar("train/success", row["success"], row["episode"])
         if losses:
-            for key in losses[0]:
-                w.add_scalar(f"loss/{key}", float(np.mean([x[key] for x in losses])), self.episodes)
+            for key in dict.fromkeys(k for x in losses for k in x):   # actor_loss: some (policy_delay)
+                w.add_scalar(f"loss/{key}", float(np.mean([x[key] for x in losses if key in x])),
+                             self.episodes)
         w.add_scalar("train/success_rate_100", float(np.mean(self.recent_success)), self.episodes)
         if self.curriculum is not None:
             w.add_scalar("curriculum/frontier", self.curriculum.frontier(), self.episodes)
