@@ -239,6 +239,59 @@ def test_every_shipped_config_is_a_valid_train_config(name):
     assert config.episodes >= 1
 
 
+def test_a_config_that_extends_the_recipe_changes_only_what_it_names(tmp_path):
+    """``extends: recipe`` starts from the shipped recipe; ``algo`` and ``task`` merge key by
+    key, other fields replace the base's."""
+    from dualarm.training.config import TrainConfig
+
+    variant = tmp_path / "variant.yaml"
+    variant.write_text("extends: recipe\nstart_curriculum: 0.3\nalgo:\n  batch_size: 64\n"
+                       "task:\n  max_episode_steps: 80\n")
+    recipe, config = TrainConfig.recipe(), TrainConfig.load(variant)
+    assert config.start_curriculum == 0.3 and recipe.start_curriculum != 0.3
+    assert config.algo.batch_size == 64 and config.task["max_episode_steps"] == 80
+    assert config.algo.twin_critics and config.algo.hidden == recipe.algo.hidden
+    assert config.task["joint_angles_in_obs"] is True           # kept from the recipe's task
+    changed = {k for k, v in config.to_dict().items() if recipe.to_dict()[k] != v}
+    assert changed == {"start_curriculum", "algo", "task"}
+
+
+def test_extends_chains_and_resolves_constraints_against_the_file_that_names_them(tmp_path):
+    from dualarm.constraints.constraint_set import default_constraints_path
+    from dualarm.training.config import TrainConfig
+
+    base_dir = tmp_path / "base"
+    base_dir.mkdir()
+    (base_dir / "multi.yaml").write_bytes(default_constraints_path("multi").read_bytes())
+    (base_dir / "base.yaml").write_text("condition: multi\nconstraints: multi.yaml\nepisodes: 50\n"
+                                        "algo:\n  hidden: [32, 32]\n  batch_size: 16\n")
+    (tmp_path / "middle.yaml").write_text("extends: base/base.yaml\nalgo:\n  batch_size: 8\n")
+    (tmp_path / "top.yaml").write_text("extends: middle.yaml\nepisodes: 70\n")
+    config = TrainConfig.load(tmp_path / "top.yaml")
+    assert (config.episodes, config.algo.hidden, config.algo.batch_size) == (70, (32, 32), 8)
+    assert Path(config.constraints) == base_dir / "multi.yaml"
+    assert len(config.load_constraints().segments) == 2
+
+
+@pytest.mark.parametrize("files, message", [
+    ({"a.yaml": "extends: a.yaml\n"}, "loops back"),
+    ({"a.yaml": "extends: b.yaml\n", "b.yaml": "extends: a.yaml\n"}, "loops back"),
+    ({"a.yaml": "extends: missing.yaml\n"}, "no config file"),
+    ({"a.yaml": "extends: [recipe]\n"}, "must name a config file"),
+    ({"a.yaml": "extends: b.yaml\n", "b.yaml": "- 1\n"}, "expected a mapping"),
+    ({"a.yaml": "extends: b.yaml\n", "b.yaml": "batch: 3\n"}, "unknown field"),
+])
+def test_a_bad_extends_is_refused_naming_the_file(tmp_path, files, message):
+    from dualarm.errors import InputError
+    from dualarm.training.config import TrainConfig
+
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    with pytest.raises(InputError, match=message) as info:
+        TrainConfig.load(tmp_path / "a.yaml")
+    assert "a.yaml" in str(info.value) or "b.yaml" in str(info.value)
+
+
 def test_load_learner_restores_the_critics_that_load_policy_leaves_untrained(run_dir):
     """load_policy restores the actors only; a critic read from it is its initial weights.
     load_learner restores the critics too (the same actors either way)."""

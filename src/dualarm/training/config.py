@@ -283,9 +283,53 @@ class TrainConfig:
 
     @classmethod
     def load(cls, path: str | Path) -> "TrainConfig":
-        d = read_yaml(path, "training config")
-        config = cls.from_dict(d, where=str(path))
-        if config.constraints and not Path(config.constraints).is_absolute():
-            # a path in a file is relative to that file (a run directory keeps its copy)
-            config = config.with_(constraints=str(Path(path).parent / config.constraints))
-        return config
+        """The config of a YAML file of fields; ``extends: BASE`` in it starts from another
+        file's fields (see :func:`read_config_layers`)."""
+        return cls.from_dict(read_config_layers(Path(path)), where=str(path))
+
+
+#: The value of ``extends`` that names the shipped recipe (``RECIPE_PATH``).
+RECIPE_NAME = "recipe"
+
+#: Fields whose mappings a file merges key by key into its base's (the rest it replaces).
+MERGED_FIELDS = ("algo", "task")
+
+
+def read_config_layers(path: Path, seen: tuple[Path, ...] = ()) -> dict:
+    """The fields of the training-config file ``path``, on top of those of the file its
+    ``extends`` names (a path relative to ``path``'s folder, or ``recipe`` for the shipped
+    recipe), and so on down: a variant file says only what it changes. ``algo`` and ``task``
+    are merged key by key; any other field replaces the base's. A relative ``constraints``
+    path is resolved against the folder of the file that gives it, so a run directory's
+    copy and a base in another folder both keep pointing at the same file.
+
+    Raises:
+        InputError: naming the file: unreadable or not a mapping, ``extends`` not a string,
+            a base that cannot be read, or a chain of bases that loops back.
+    """
+    where = str(path)
+    d = read_yaml(path, "training config")
+    if not isinstance(d, dict):
+        raise InputError(f"{where}: expected a mapping of training settings")
+    d = dict(d)
+    if d.get("constraints") and isinstance(d["constraints"], str) \
+            and not Path(d["constraints"]).is_absolute():
+        d["constraints"] = str(path.parent / d["constraints"])
+    if "extends" not in d:
+        return d
+    name = d.pop("extends")
+    if not isinstance(name, str) or not name.strip():
+        raise InputError(f"{where}: field 'extends' must name a config file (a path relative "
+                         f"to this file's folder) or {RECIPE_NAME!r}; got {name!r}")
+    base_path = RECIPE_PATH if name == RECIPE_NAME else path.parent / name
+    key = base_path.resolve()
+    if key in seen or key == path.resolve():
+        chain = " -> ".join(str(p) for p in (*seen, path.resolve(), key))
+        raise InputError(f"{where}: field 'extends' loops back: {chain}")
+    if not base_path.is_file():
+        raise InputError(f"{where}: field 'extends': no config file {str(base_path)!r}")
+    base = read_config_layers(base_path, (*seen, path.resolve()))
+    for name_ in MERGED_FIELDS:
+        if isinstance(base.get(name_), dict) and isinstance(d.get(name_), dict):
+            d[name_] = {**base[name_], **d[name_]}
+    return {**base, **d}
