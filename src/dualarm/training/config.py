@@ -322,13 +322,13 @@ def read_config_layers(path: Path, seen: tuple[Path, ...] = ()) -> dict:
         raise InputError(f"{where}: field 'extends' must name a config file (a path relative "
                          f"to this file's folder) or {RECIPE_NAME!r}; got {name!r}")
     base_path = RECIPE_PATH if name == RECIPE_NAME else path.parent / name
-    key = base_path.resolve()
-    if key in seen or key == path.resolve():
-        chain = " -> ".join(str(p) for p in (*seen, path.resolve(), key))
-        raise InputError(f"{where}: field 'extends' loops back: {chain}")
+    chain = (*seen, path.resolve())          # this file and the ones that extend it
+    if base_path.resolve() in chain:
+        looped = " -> ".join(str(p) for p in (*chain, base_path.resolve()))
+        raise InputError(f"{where}: field 'extends' loops back: {looped}")
     if not base_path.is_file():
         raise InputError(f"{where}: field 'extends': no config file {str(base_path)!r}")
-    base = read_config_layers(base_path, (*seen, path.resolve()))
+    base = read_config_layers(base_path, chain)
     for name_ in MERGED_FIELDS:
         if isinstance(base.get(name_), dict) and isinstance(d.get(name_), dict):
             d[name_] = {**base[name_], **d[name_]}
