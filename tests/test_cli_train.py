@@ -273,15 +273,20 @@ def test_extends_chains_and_resolves_constraints_against_the_file_that_names_the
     assert len(config.load_constraints().segments) == 2
 
 
-@pytest.mark.parametrize("files, message", [
-    ({"a.yaml": "extends: a.yaml\n"}, "loops back"),
-    ({"a.yaml": "extends: b.yaml\n", "b.yaml": "extends: a.yaml\n"}, "loops back"),
-    ({"a.yaml": "extends: missing.yaml\n"}, "no config file"),
-    ({"a.yaml": "extends: [recipe]\n"}, "must name a config file"),
-    ({"a.yaml": "extends: b.yaml\n", "b.yaml": "- 1\n"}, "expected a mapping"),
-    ({"a.yaml": "extends: b.yaml\n", "b.yaml": "batch: 3\n"}, "unknown field"),
+@pytest.mark.parametrize("files, message, culprit", [
+    ({"a.yaml": "extends: a.yaml\n"}, "loops back", "a.yaml"),
+    ({"a.yaml": "extends: b.yaml\n", "b.yaml": "extends: a.yaml\n"}, "loops back", "b.yaml"),
+    ({"a.yaml": "extends: missing.yaml\n"}, "no config file", "a.yaml"),
+    ({"a.yaml": "extends: [recipe]\n"}, "must name a config file", "a.yaml"),
+    ({"a.yaml": "extends: b.yaml\n", "b.yaml": "- 1\n"}, "expected a mapping", "b.yaml"),
+    ({"a.yaml": "extends: b.yaml\n", "b.yaml": "batch: 3\n"}, "unknown field", "b.yaml"),
+    ({"a.yaml": "extends: b.yaml\nepisodes: 5\n", "b.yaml": "algo:\n  hiden: [8]\n"},
+     r"algo: unknown DADDPG field\(s\) \['hiden'\]", "b.yaml"),
+    ({"a.yaml": "extends: b.yaml\nepsiodes: 5\n", "b.yaml": "episodes: 4\n"},
+     r"unknown field\(s\) \['epsiodes'\]", "a.yaml"),
 ])
-def test_a_bad_extends_is_refused_naming_the_file(tmp_path, files, message):
+def test_a_bad_extends_is_refused_naming_the_file(tmp_path, files, message, culprit):
+    """Each error names the file at fault: a base's misspelt field is the base's."""
     from dualarm.errors import InputError
     from dualarm.training.config import TrainConfig
 
@@ -289,7 +294,7 @@ def test_a_bad_extends_is_refused_naming_the_file(tmp_path, files, message):
         (tmp_path / name).write_text(text)
     with pytest.raises(InputError, match=message) as info:
         TrainConfig.load(tmp_path / "a.yaml")
-    assert "a.yaml" in str(info.value) or "b.yaml" in str(info.value)
+    assert str(info.value).startswith(str(tmp_path / culprit) + ":")
 
 
 def test_load_learner_restores_the_critics_that_load_policy_leaves_untrained(run_dir):

@@ -304,13 +304,15 @@ def read_config_layers(path: Path, seen: tuple[Path, ...] = ()) -> dict:
     copy and a base in another folder both keep pointing at the same file.
 
     Raises:
-        InputError: naming the file: unreadable or not a mapping, ``extends`` not a string,
-            a base that cannot be read, or a chain of bases that loops back.
+        InputError: naming the file: unreadable or not a mapping, an unknown field (named by
+            the file that holds it, base or variant), ``extends`` not a string, a base that
+            cannot be read, or a chain of bases that loops back.
     """
     where = str(path)
     d = read_yaml(path, "training config")
     if not isinstance(d, dict):
         raise InputError(f"{where}: expected a mapping of training settings")
+    _check_layer_fields(d, where)
     d = dict(d)
     if d.get("constraints") and isinstance(d["constraints"], str) \
             and not Path(d["constraints"]).is_absolute():
@@ -333,3 +335,18 @@ def read_config_layers(path: Path, seen: tuple[Path, ...] = ()) -> dict:
         if isinstance(base.get(name_), dict) and isinstance(d.get(name_), dict):
             d[name_] = {**base[name_], **d[name_]}
     return {**base, **d}
+
+
+def _check_layer_fields(d: dict, where: str) -> None:
+    """Refuse unknown top-level and ``algo`` field names in one layer of a config file, so
+    that a misspelt field in a base is reported under the base's name, not the variant's."""
+    known = {f.name for f in fields(TrainConfig)} | {"extends"}
+    unknown = sorted(set(d) - known, key=str)
+    if unknown:
+        raise InputError(f"{where}: unknown field(s) {unknown}; known: {sorted(known)}")
+    if isinstance(d.get("algo"), dict):
+        known_algo = {f.name for f in fields(DADDPGConfig)}
+        unknown = sorted(set(d["algo"]) - known_algo, key=str)
+        if unknown:
+            raise InputError(f"{where}: algo: unknown DADDPG field(s) {unknown}; "
+                             f"known: {sorted(known_algo)}")
