@@ -574,6 +574,40 @@ def test_carry_shaping_adds_a_potential_on_the_box_to_target_distance(tmp_path):
         curriculum_config(carry_shaping=-0.5)
 
 
+def test_grasp_shaping_pays_k_for_the_grasp_and_takes_it_back_for_a_drop(tmp_path):
+    """grasp_shaping k: phi is +k while the grasp predicate holds (the environment's own
+    GraspRule on the observation), so making the grasp pays gamma k, a drop costs k and
+    holding on -(1 - gamma) k; on real observations of arms started holding their boxes and
+    at their boxes with the fingers open."""
+    from dualarm.envs.baxter import GraspRule, observation_layout
+    from dualarm.training.loop import make_vector_env
+
+    config = curriculum_config(grasp_shaping=0.5, episodes=8)       # no other potential
+    layout = observation_layout(config.task_config().observes_joint_angles)
+    rule = GraspRule(config.task_config())
+    held, open_ = (np.stack([make_vector_env(config, 2, start=start).reset(i, 5 + i) for i in range(2)])
+                   for start in (2, 1))   # (2 copies, 2 arms, O): holding; at the box, open
+    parts = lambda o: (o[..., layout["object_rel_pos"]], o[..., layout["fingers"]],  # noqa: E731
+                       o[..., layout["object_pos"]])
+    assert rule.held(*parts(held)).tolist() == [[1.0, 1.0]] * 2
+    assert rule.held(*parts(open_)).tolist() == [[0.0, 0.0]] * 2
+    trainer = Trainer.start(config, tmp_path / "run", progress=False)
+    try:
+        held, open_ = (torch.as_tensor(o, dtype=torch.float32) for o in (held, open_))
+        torch.testing.assert_close(trainer.potential(held), torch.full((2, 2), 0.5))
+        torch.testing.assert_close(trainer.potential(open_), torch.zeros(2, 2))
+        g, not_done, done = config.algo.gamma, torch.zeros(2), torch.ones(2)
+        shaping = lambda o, o2, d=not_done: trainer.shaping({"obs": o, "next_obs": o2, "done": d})  # noqa: E731
+        torch.testing.assert_close(shaping(open_, held), torch.full((2, 2), 0.5 * g))   # grasp
+        torch.testing.assert_close(shaping(held, open_), torch.full((2, 2), -0.5))      # drop
+        torch.testing.assert_close(shaping(held, held), torch.full((2, 2), 0.5 * (g - 1)))
+        torch.testing.assert_close(shaping(held, held, done), torch.full((2, 2), -0.5))  # success
+    finally:
+        trainer.close()
+    with pytest.raises(ValueError, match="grasp_shaping must be"):
+        curriculum_config(grasp_shaping=-0.5)
+
+
 def test_curriculum_options_are_checked(tmp_path):
     with pytest.raises(ValueError, match="start_curriculum must be in"):
         TrainConfig(start_probs=(0.2, 0.2, 0.6), start_curriculum=1.5)

@@ -102,6 +102,14 @@ class GraspRule:
         self.lifted_z = config.scene.table_height + config.scene.box_half_size + config.lift_height
         self.align_sq = config.align_threshold ** 2
 
+    def held(self, rel, fingers, box):
+        """The grasp predicate as 0/1 floats (...,), numpy or torch alike (for the learner's
+        shaping potential): rel = box - grip (..., 3), finger joints (..., 2), box centres (..., 3)."""
+        near = (rel * rel).sum(-1) < self.tolerance ** 2
+        closed = finger_gap(fingers) <= self.closed_gap
+        lifted = box[..., 2] > self.lifted_z
+        return (near & closed & lifted) * 1.0
+
     def __call__(self, rel: np.ndarray, fingers: np.ndarray, box: np.ndarray,
                  targets: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(distance grip site to box, grasped, aligned), each (...,) from rel = box - grip

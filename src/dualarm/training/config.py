@@ -94,6 +94,12 @@ class TrainConfig:
             distance term, scaled with rc to 1, is 4,000 times weaker (round 17). The box
             rests until grasped, so before the grasp the term is the constant -(1 - gamma) phi.
             Both potentials add. 0 turns it off.
+        grasp_shaping: k, in the learner's reward units: the potential gains +k while an arm
+            holds its box as the grasp sub-task counts it (``GraspRule``: between the closed
+            fingers and lifted ``lift_height``), so that the grasp pays k when it is made and
+            costs k when the box is dropped, where rg2 scaled with rc to 1 pays 0.005 (the
+            grasp is the longest phase of the curriculum, docs/learning-runs.md, round 25).
+            Adds to the other potentials. 0 turns it off.
         reward_heads: split each agent's reward into three components, each learned by its
             own critic head at its own scale (``DADDPG``'s ``head_scales``): the per-step
             terms (distance + guide) times ``algo.reward_scale``, the goal bonuses divided
@@ -129,6 +135,7 @@ class TrainConfig:
     her_share: float = 0.0
     approach_shaping: float = 0.0
     carry_shaping: float = 0.0
+    grasp_shaping: float = 0.0
     demo_episodes: int = 0
     algo: DADDPGConfig = field(default_factory=DADDPGConfig)
 
@@ -187,7 +194,7 @@ class TrainConfig:
             if getattr(self, name) and not self.uses_start_states:
                 raise InputError(f"{name} moves the start states: give start_probs other "
                                  "than (1, 0, 0), for example [0.2, 0.2, 0.6]")
-        for name in ("approach_shaping", "carry_shaping"):
+        for name in ("approach_shaping", "carry_shaping", "grasp_shaping"):
             if getattr(self, name) < 0:
                 raise InputError(f"{name} must be >= 0, got {getattr(self, name)}")
         if not 0 <= self.her_share <= 1:
@@ -204,6 +211,7 @@ class TrainConfig:
                 "near_random_eps": self.near_random_eps is not None,
                 "approach_shaping": self.approach_shaping > 0,
                 "carry_shaping": self.carry_shaping > 0,
+                "grasp_shaping": self.grasp_shaping > 0,
                 "algo.grip_hold_eps": self.algo.grip_hold_eps > 0}
         return [name for name, on in used.items() if on]
 

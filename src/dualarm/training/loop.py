@@ -22,7 +22,8 @@ import numpy as np
 import torch
 
 from dualarm.atomic import atomic_copy
-from dualarm.envs.baxter import HEAD_TERMS, ReachRelabeller, TargetRelabeller, observation_layout
+from dualarm.envs.baxter import (HEAD_TERMS, GraspRule, ReachRelabeller, TargetRelabeller,
+                                 observation_layout)
 from dualarm.errors import DualarmError, InputError
 from dualarm.locks import DirectoryLock
 from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
@@ -98,17 +99,22 @@ def approach_potential(obs, rel_columns: slice, k: float):
 def shaping_potential(config: TrainConfig):
     """The run's potential phi(obs) -> (..., A) for raw observations (..., A, O), numpy or
     torch, in the learner's reward units: -``approach_shaping`` x the grip-to-box distance
-    - ``carry_shaping`` x the box-to-target distance (m). None when both are 0."""
-    approach, carry = config.approach_shaping, config.carry_shaping
-    if approach == 0 and carry == 0:
+    - ``carry_shaping`` x the box-to-target distance (m) + ``grasp_shaping`` x (1 while the
+    arm holds its box as ``GraspRule`` counts the grasp, else 0). None when all are 0."""
+    approach, carry, grasp = config.approach_shaping, config.carry_shaping, config.grasp_shaping
+    if approach == 0 and carry == 0 and grasp == 0:
         return None
-    layout = observation_layout(config.task_config().observes_joint_angles)
+    task = config.task_config()
+    layout = observation_layout(task.observes_joint_angles)
     rel, box, target = layout["object_rel_pos"], layout["object_pos"], layout["target_pos"]
+    fingers, rule = layout["fingers"], GraspRule(task)
 
     def phi(obs):
         value = approach_potential(obs, rel, approach)
         if carry > 0:
             value = value - carry * ((obs[..., target] - obs[..., box]) ** 2).sum(-1) ** 0.5
+        if grasp > 0:
+            value = value + grasp * rule.held(obs[..., rel], obs[..., fingers], obs[..., box])
         return value
     return phi
 
