@@ -105,18 +105,20 @@ class GraspRule:
     def held(self, rel, fingers, box):
         """The grasp predicate as 0/1 floats (...,), numpy or torch alike (for the learner's
         shaping potential): rel = box - grip (..., 3), finger joints (..., 2), box centres (..., 3)."""
-        near = (rel * rel).sum(-1) < self.tolerance ** 2
-        closed = finger_gap(fingers) <= self.closed_gap
-        lifted = box[..., 2] > self.lifted_z
-        return (near & closed & lifted) * 1.0
+        return self._grasped((rel * rel).sum(-1) ** 0.5, fingers, box) * 1.0
+
+    def _grasped(self, to_box, fingers, box):
+        """The grasp predicate (...,) bool from the grip-to-box distance (...,), the finger
+        joints (..., 2) and the box centres (..., 3); numpy or torch."""
+        return (to_box < self.tolerance) & (finger_gap(fingers) <= self.closed_gap) \
+            & (box[..., 2] > self.lifted_z)
 
     def __call__(self, rel: np.ndarray, fingers: np.ndarray, box: np.ndarray,
                  targets: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(distance grip site to box, grasped, aligned), each (...,) from rel = box - grip
         (..., 3), finger joints (..., 2), box centres (..., 3) and targets (..., 3)."""
         to_box = np.sqrt((rel * rel).sum(axis=-1))
-        grasped = ((to_box < self.tolerance) & (finger_gap(fingers) <= self.closed_gap)
-                   & (box[..., 2] > self.lifted_z))
+        grasped = self._grasped(to_box, fingers, box)
         off = box - targets
         return to_box, grasped, grasped & ((off * off).sum(axis=-1) < self.align_sq)
 
