@@ -585,8 +585,11 @@ def test_grasp_shaping_pays_k_for_the_grasp_and_takes_it_back_for_a_drop(tmp_pat
     config = curriculum_config(grasp_shaping=0.5, episodes=8)       # no other potential
     layout = observation_layout(config.task_config().observes_joint_angles)
     rule = GraspRule(config.task_config())
-    held, open_ = (np.stack([make_vector_env(config, 2, start=start).reset(i, 5 + i) for i in range(2)])
-                   for start in (2, 1))   # (2 copies, 2 arms, O): holding; at the box, open
+    observed = []
+    for start in (2, 1):               # (2 copies, 2 arms, O): holding; at the box, open
+        vec = make_vector_env(config, 2, start=start)
+        observed.append(np.stack([vec.reset(i, 5 + i) for i in range(2)]))
+    held, open_ = observed
     parts = lambda o: (o[..., layout["object_rel_pos"]], o[..., layout["fingers"]],  # noqa: E731
                        o[..., layout["object_pos"]])
     assert rule.held(*parts(held)).tolist() == [[1.0, 1.0]] * 2
