@@ -611,6 +611,42 @@ def test_grasp_shaping_pays_k_for_the_grasp_and_takes_it_back_for_a_drop(tmp_pat
         curriculum_config(grasp_shaping=-0.5)
 
 
+def test_mirror_episodes_stores_each_episode_and_its_mirror_image(tmp_path):
+    """With mirror_episodes the replay holds every real episode followed by its mirror image
+    (dualarm.envs.mirror), guide term recomputed; episodes and returns count the real ones
+    only, and a resumed run gives the uninterrupted run's rows."""
+    from dualarm.envs.mirror import TaskMirror
+
+    config = curriculum_config(condition="multi", mirror_episodes=True, episodes=8, eval_every=4,
+                               task={"max_episode_steps": 20, "joint_angles_in_obs": True})
+    trainer = Trainer.start(config, tmp_path / "ref", progress=False)
+    trainer.run()
+    trainer.close()
+    b = trainer.buffer
+    assert len(b) == 2 * trainer.env_steps and trainer.episodes == 8
+    mirror = TaskMirror(config.task_config(), config.load_constraints())
+    data = {k: v[:len(b)] for k, v in b.data.items()}
+    starts = np.flatnonzero(np.r_[True, data["left"][:-1] == 0])   # each stored episode's first row
+    assert len(starts) == 16
+    moved = 0
+    for real, image in zip(starts[0::2], starts[1::2]):
+        t = int(data["left"][real]) + 1
+        assert image == real + t
+        r, m = slice(real, real + t), slice(image, image + t)
+        np.testing.assert_allclose(data["obs"][m], mirror.obs(data["obs"][r]))
+        np.testing.assert_allclose(data["act"][m], mirror.act(data["act"][r]))
+        np.testing.assert_allclose(data["rew"][m], mirror.reward(data["rew"][r], data["next_obs"][r]),
+                                   atol=1e-6)
+        moved += int(not np.allclose(data["rew"][m], data["rew"][r][:, ::-1]))
+    assert moved > 0, "the guide term never differed between the arms"
+    train(config.with_(episodes=4), tmp_path / "run", progress=False)
+    resume(tmp_path / "run", episodes=8, progress=False)
+    assert rows(tmp_path / "run" / "metrics.csv") == rows(tmp_path / "ref" / "metrics.csv")
+    with pytest.raises(ValueError, match="joint angles"):
+        curriculum_config(condition="multi", mirror_episodes=True,
+                          task={"joint_angles_in_obs": False})
+
+
 def test_curriculum_options_are_checked(tmp_path):
     with pytest.raises(ValueError, match="start_curriculum must be in"):
         TrainConfig(start_probs=(0.2, 0.2, 0.6), start_curriculum=1.5)

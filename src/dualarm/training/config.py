@@ -100,6 +100,12 @@ class TrainConfig:
             costs k when the box is dropped, where rg2 scaled with rc to 1 pays 0.005 (the
             grasp is the longest phase of the curriculum, docs/learning-runs.md, round 25).
             Adds to the other potentials. 0 turns it off.
+        mirror_episodes: store every training episode twice, as it happened and as its mirror
+            image (``dualarm.envs.mirror``: the scene reflected left to right, the arms
+            swapped, the guide term recomputed for the arm the joints then belong to), so
+            that each arm's agent learns from the other arm's experience as well (Kaleidoscope
+            Experience Replay, Lin et al. 2020). Episode counts and logged returns are the
+            real episodes'. Needs the joint angles in the observation in a guided condition.
         reward_heads: split each agent's reward into three components, each learned by its
             own critic head at its own scale (``DADDPG``'s ``head_scales``): the per-step
             terms (distance + guide) times ``algo.reward_scale``, the goal bonuses divided
@@ -136,6 +142,7 @@ class TrainConfig:
     approach_shaping: float = 0.0
     carry_shaping: float = 0.0
     grasp_shaping: float = 0.0
+    mirror_episodes: bool = False
     demo_episodes: int = 0
     algo: DADDPGConfig = field(default_factory=DADDPGConfig)
 
@@ -201,6 +208,10 @@ class TrainConfig:
             raise InputError(f"her_share must be in [0, 1], got {self.her_share}")
         if self.checkpoint_minutes <= 0:
             raise InputError(f"checkpoint_minutes must be > 0, got {self.checkpoint_minutes}")
+        if self.mirror_episodes and self.condition != "none" and not task.observes_joint_angles:
+            raise InputError("mirror_episodes in a guided condition needs the joint angles in the "
+                             "observation (task: {joint_angles_in_obs: true}): the mirrored guide "
+                             "term is computed from them")
 
     def baxter_only_options(self) -> list[str]:
         """The options set in this config that exist for the Baxter task only (a custom
@@ -212,6 +223,7 @@ class TrainConfig:
                 "approach_shaping": self.approach_shaping > 0,
                 "carry_shaping": self.carry_shaping > 0,
                 "grasp_shaping": self.grasp_shaping > 0,
+                "mirror_episodes": self.mirror_episodes,
                 "algo.grip_hold_eps": self.algo.grip_hold_eps > 0}
         return [name for name, on in used.items() if on]
 

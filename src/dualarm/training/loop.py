@@ -24,6 +24,7 @@ import torch
 from dualarm.atomic import atomic_copy
 from dualarm.envs.baxter import (HEAD_TERMS, GraspRule, ReachRelabeller, TargetRelabeller,
                                  observation_layout)
+from dualarm.envs.mirror import TaskMirror
 from dualarm.errors import DualarmError, InputError
 from dualarm.locks import DirectoryLock
 from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
@@ -172,6 +173,7 @@ class Trainer:
                 achieved, relabel = relabeller.achieved, relabeller.relabel
             self.sampler = HindsightSampler(self.buffer, achieved, relabel, config.her_share,
                                             config.algo.n_step, config.algo.gamma)
+        self.mirror = TaskMirror(task, constraints) if config.mirror_episodes else None
         self.potential = shaping_potential(config)      # approach_shaping, carry_shaping
         # far_action_l2, near_random_eps, grip_hold_eps: each arm's box-minus-grip offset
         # in its observation, (3,) columns
@@ -442,6 +444,9 @@ class Trainer:
             if not whole:
                 self.buffer.add(obs[live], actions[live], reward[live], step.obs[live],
                                 step.terminated[live])
+                if self.mirror is not None:
+                    self.buffer.add(*self.mirror.episode(obs[live], actions[live], reward[live],
+                                                         step.obs[live]), step.terminated[live])
             else:
                 for i in live:
                     episodes[i].append((obs[i], actions[i], reward[i], step.obs[i],
@@ -459,8 +464,13 @@ class Trainer:
             if steps:
                 o, u, rew, o2, term = (np.stack(x) for x in zip(*steps))
                 self.buffer.add_episode(o, u, rew, o2, bool(term[-1]))
+                if self.mirror is not None:
+                    self.buffer.add_episode(*self.mirror.episode(o, u, rew, o2), bool(term[-1]))
         round_steps = int(r.steps.sum())
-        agent.normalizer.update(np.concatenate([r.first_obs, *seen]))
+        seen = np.concatenate([r.first_obs, *seen])
+        if self.mirror is not None:       # the statistics of what the critics are shown
+            seen = np.concatenate([seen, self.mirror.obs(seen)])
+        agent.normalizer.update(seen)
         timing["store_s"] += time.perf_counter() - t
         timing["collect_s"] += t - collect_start
         t = time.perf_counter()
