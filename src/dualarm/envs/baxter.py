@@ -98,6 +98,7 @@ class GraspRule:
 
     def __init__(self, config: TaskConfig):
         self.tolerance = config.grasp_tolerance
+        self.reach_threshold = config.reach_threshold
         self.closed_gap = closed_gap(config)
         self.lifted_z = config.scene.table_height + config.scene.box_half_size + config.lift_height
         self.align_sq = config.align_threshold ** 2
@@ -112,6 +113,13 @@ class GraspRule:
         joints (..., 2) and the box centres (..., 3); numpy or torch."""
         return (to_box < self.tolerance) & (finger_gap(fingers) <= self.closed_gap) \
             & (box[..., 2] > self.lifted_z)
+
+    def progress(self, to_box, grasped):
+        """(reached, sub-task) (...,) from the grip-to-box distance and the grasp predicate
+        (...,): reach is done within ``reach_threshold`` or once grasped; the sub-task is
+        0 reach, 1 grasp, 2 align."""
+        reached = grasped | (to_box < self.reach_threshold)
+        return reached, reached.astype(np.int64) + grasped
 
     def __call__(self, rel: np.ndarray, fingers: np.ndarray, box: np.ndarray,
                  targets: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -723,12 +731,10 @@ class BaxterBatch:
 
     def _evaluate(self, grip: np.ndarray, qpos: np.ndarray, targets: np.ndarray) -> dict:
         """Sub-task predicates (n, 2) from grip sites (n, 2, 3) and gathered qpos (n, 2, 16)."""
-        c = self.config
         box = qpos[..., QPOS_BOX_POS]
         rel = box - grip
         to_box, grasped, aligned = self._rule(rel, qpos[..., QPOS_FINGERS], box, targets)
-        reached = grasped | (to_box < c.reach_threshold)
-        subtask = reached.astype(np.int64) + grasped
+        reached, subtask = self._rule.progress(to_box, grasped)
         state = {"grip": grip, "qpos": qpos, "rel": rel, "targets": targets, "reached": reached,
                  "grasped": grasped, "aligned": aligned, "subtask": subtask}
         done = state[self._success_key]

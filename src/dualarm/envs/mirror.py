@@ -98,10 +98,10 @@ class TaskMirror:
         ``next_obs`` (..., 2, obs_size): each arm's joints against its constraints in its
         sub-task there (reach 0, grasp 1 once within ``reach_threshold``, align 2 once held)."""
         L = self.layout
-        rel = next_obs[..., L["object_rel_pos"]]
-        to_box = np.sqrt((rel * rel).sum(-1))
-        grasped = self._rule._grasped(to_box, next_obs[..., L["fingers"]], next_obs[..., L["object_pos"]])
-        subtask = (grasped | (to_box < self.config.reach_threshold)).astype(np.int64) + grasped
+        box = next_obs[..., L["object_pos"]]
+        to_box, grasped, _ = self._rule(next_obs[..., L["object_rel_pos"]], next_obs[..., L["fingers"]],
+                                        box, box)
+        _, subtask = self._rule.progress(to_box, grasped)
         q = next_obs[..., L["joint_angles"]].reshape(next_obs.shape[:-2] + (14,))
         return self.constraints.guide_reward(q, subtask[..., 0], subtask[..., 1], self._c0)
 
