@@ -654,6 +654,10 @@ def test_curriculum_options_are_checked(tmp_path):
         TrainConfig(start_curriculum=0.5)
     with pytest.raises(ValueError, match="her_share"):
         TrainConfig(her_share=1.5)
+    with pytest.raises(ValueError, match="her_goal_jitter"):
+        TrainConfig(her_goal_jitter=0.03)                 # no hindsight goals to move
+    with pytest.raises(ValueError, match="her_goal_jitter"):
+        TrainConfig(her_share=0.8, her_goal_jitter=-0.01)
     with pytest.raises(Exception, match="start_probs"):
         Trainer.start(small_toy_config(start_probs=(0.0, 0.0, 1.0)), tmp_path / "toy",
                       make_env=TwoPointMassEnv, progress=False)

@@ -35,10 +35,17 @@ class HindsightSampler:
         n_step: with n > 1 each row sums the rewards of up to n steps of its episode
             (``n_step_returns``); the batch then carries ``discount`` (B,), gamma^m.
         gamma: the discount of those sums (needed with n > 1).
+        goal_jitter: radius (in the goals' units, m for positions) of a ball around each
+            hindsight goal within which it is moved uniformly at random, per agent: the
+            task's goals are met anywhere within a threshold of them, so a goal near the
+            achieved one is as true as the achieved one itself, and a batch shows the critics
+            the edge of success (goal-augmented replay, Lin et al. 2020). 0: the achieved
+            goals themselves, as HER.
     """
 
     def __init__(self, buffer: ReplayBuffer, achieved: Achieved | None, relabel: Relabel | None,
-                 share: float = 0.8, n_step: int = 1, gamma: float | None = None):
+                 share: float = 0.8, n_step: int = 1, gamma: float | None = None,
+                 goal_jitter: float = 0.0):
         if not 0 <= share <= 1:
             raise ValueError(f"the hindsight share must be in [0, 1], got {share}")
         if share > 0 and (achieved is None or relabel is None):
@@ -47,6 +54,9 @@ class HindsightSampler:
             raise ValueError(f"n_step must be >= 1 (and > 1 needs gamma), got {n_step}")
         self.buffer, self.achieved, self.relabel, self.share = buffer, achieved, relabel, share
         self.n_step, self.gamma = int(n_step), gamma
+        if goal_jitter < 0:
+            raise ValueError(f"goal_jitter must be >= 0, got {goal_jitter}")
+        self.goal_jitter = float(goal_jitter)
 
     def sample(self, rng: np.random.Generator, batch_size: int) -> dict[str, torch.Tensor]:
         """A uniform batch in which about ``share`` of the rows carry a future goal of their
@@ -60,10 +70,21 @@ class HindsightSampler:
             offset = np.floor(rng.random(len(rows)) * (batch["left"][rows] + 1)).astype(np.int64)
             future = (idx[rows] + offset) % b.capacity
             goals = self.achieved(b.data["next_obs"][future])
+            if self.goal_jitter > 0:
+                goals = goals + ball_offsets(rng, goals.shape, self.goal_jitter).astype(goals.dtype)
             self.relabel(batch, rows, goals)
         if self.n_step > 1:
             n_step_returns(batch, b, idx, self.n_step, self.gamma, self.relabel, rows, goals)
         return {k: torch.from_numpy(v) for k, v in batch.items()}
+
+
+def ball_offsets(rng: np.random.Generator, shape: tuple, radius: float) -> np.ndarray:
+    """Points drawn uniformly from the ball of ``radius`` about 0 in the last axis of
+    ``shape`` (..., G): a uniform direction times radius x u^(1/G)."""
+    direction = rng.normal(size=shape)
+    direction /= np.maximum(np.linalg.norm(direction, axis=-1, keepdims=True), 1e-12)
+    scale = radius * rng.random(shape[:-1] + (1,)) ** (1.0 / shape[-1])
+    return direction * scale
 
 
 def n_step_returns(batch: dict, buffer: ReplayBuffer, idx: np.ndarray, n: int, gamma: float,

@@ -82,6 +82,10 @@ class TrainConfig:
             replay, Andrychowicz et al. 2017, "future" goals): the targets by where the
             boxes went, or, in the reach task (``task.success_at: reach``), the boxes by
             where the grip sites went. 0 turns it off.
+        her_goal_jitter: metres; each hindsight goal moved uniformly within a ball of this
+            radius (goal-augmented replay, Lin et al. 2020): the task counts a box within
+            ``align_threshold`` of its target as there, so goals near where the box went are
+            as true as the exact ones. 0: HER's exact goals.
         approach_shaping: k, in the learner's reward units per metre: each arm's learner
             reward gains the potential-based term gamma * phi(s') - phi(s) with phi(s) = -k *
             (the distance from its grip site to its box), phi = 0 after a success (Ng, Harada
@@ -139,6 +143,7 @@ class TrainConfig:
     approach_starts: bool = False
     reward_heads: bool = False
     her_share: float = 0.0
+    her_goal_jitter: float = 0.0
     approach_shaping: float = 0.0
     carry_shaping: float = 0.0
     grasp_shaping: float = 0.0
@@ -206,6 +211,9 @@ class TrainConfig:
                 raise InputError(f"{name} must be >= 0, got {getattr(self, name)}")
         if not 0 <= self.her_share <= 1:
             raise InputError(f"her_share must be in [0, 1], got {self.her_share}")
+        if self.her_goal_jitter < 0 or (self.her_goal_jitter > 0 and self.her_share == 0):
+            raise InputError(f"her_goal_jitter must be >= 0 and needs her_share > 0, got "
+                             f"{self.her_goal_jitter} with her_share {self.her_share}")
         if self.checkpoint_minutes <= 0:
             raise InputError(f"checkpoint_minutes must be > 0, got {self.checkpoint_minutes}")
         if self.mirror_episodes and self.condition != "none" and not task.observes_joint_angles:

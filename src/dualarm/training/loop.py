@@ -172,7 +172,8 @@ class Trainer:
                 relabeller = goals(task, task.observes_joint_angles)
                 achieved, relabel = relabeller.achieved, relabeller.relabel
             self.sampler = HindsightSampler(self.buffer, achieved, relabel, config.her_share,
-                                            config.algo.n_step, config.algo.gamma)
+                                            config.algo.n_step, config.algo.gamma,
+                                            config.her_goal_jitter)
         self.mirror = TaskMirror(task, constraints) if config.mirror_episodes else None
         self.potential = shaping_potential(config)      # approach_shaping, carry_shaping
         # far_action_l2, near_random_eps, grip_hold_eps: each arm's box-minus-grip offset
