@@ -99,6 +99,8 @@ class TaskMirror:
         sub-task there (reach 0, grasp 1 once within ``reach_threshold``, align 2 once held)."""
         L = self.layout
         box = next_obs[..., L["object_pos"]]
+        # The environment's own predicates (the same distance and grasp); the target argument
+        # only feeds the align flag, unused here.
         to_box, grasped, _ = self._rule(next_obs[..., L["object_rel_pos"]], next_obs[..., L["fingers"]],
                                         box, box)
         _, subtask = self._rule.progress(to_box, grasped)
