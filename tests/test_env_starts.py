@@ -122,3 +122,59 @@ def test_approach_starts_put_the_open_gripper_between_home_and_above_the_box():
     assert min(fractions) < 0.3 and max(fractions) > 0.7          # spread along the way
     with pytest.raises(Exception, match="approach_starts"):
         TrainConfig(approach_starts=True)
+
+
+def test_approach_spread_ends_the_approach_starts_beside_the_point_above_the_box():
+    """approach_spread r: each approach start lies on the line from home to a point at the
+    approach height whose horizontal offset from the box's axis is within r, and the offsets
+    fill the disc (the starts leave the axis); r = 0 is the straight approach, draw for draw."""
+    from dualarm.envs.baxter import APPROACH_HEIGHT
+
+    task = TaskConfig()
+    probs = (1.0 - 1e-9, 1e-9, 0.0)
+    home = BaxterBatch(task, num_envs=1, start_probs=(1.0, 0.0, 0.0))
+    spread = BaxterBatch(task, num_envs=1, start_probs=probs, approach_starts=True, approach_spread=0.04)
+    straight = BaxterBatch(task, num_envs=1, start_probs=probs, approach_starts=True)
+    zero = BaxterBatch(task, num_envs=1, start_probs=probs, approach_starts=True, approach_spread=0.0)
+    offsets = []
+    for seed in range(16):
+        start = home.reset_env(0, seed)[0][:, :3]
+        o = spread.reset_env(0, seed)[0]
+        above = o[:, 3:6] + [0.0, 0.0, APPROACH_HEIGHT]
+        for arm in range(2):
+            u = (o[arm, 2] - start[arm, 2]) / (above[arm, 2] - start[arm, 2])   # height is not spread
+            if u < 0.2:
+                continue                      # too near home to extrapolate the end point
+            end = start[arm] + (o[arm, :3] - start[arm]) / u
+            offsets.append(np.linalg.norm(end[:2] - above[arm, :2]))
+        np.testing.assert_array_equal(straight.reset_env(0, seed)[0], zero.reset_env(0, seed)[0])
+    assert len(offsets) >= 10
+    assert max(offsets) <= 0.04 + 0.005 and max(offsets) > 0.02, offsets
+    with pytest.raises(Exception, match="approach_spread"):
+        TrainConfig(start_probs=(0.2, 0.2, 0.6), approach_spread=0.04)          # needs approach_starts
+    with pytest.raises(Exception, match="approach_spread"):
+        TrainConfig(start_probs=(0.2, 0.2, 0.6), approach_starts=True, approach_spread=-0.01)
+    with pytest.raises(ValueError, match="approach_spread"):
+        BaxterBatch(task, num_envs=1, approach_spread=-0.01)
+
+
+def test_held_spread_moves_the_held_box_off_the_way_to_its_target_and_keeps_it_held():
+    """held_spread r: a held start's box is moved within r of where the straight carry start
+    puts it (the left arm draws its fraction of the way first, so the two agree on it), the
+    box is held, and r = 0 is the straight carry start, draw for draw."""
+    task = TaskConfig()
+    spread = BaxterBatch(task, num_envs=1, start_probs=(0.0, 0.0, 1.0), held_spread=0.04)
+    straight = BaxterBatch(task, num_envs=1, start_probs=(0.0, 0.0, 1.0))
+    zero = BaxterBatch(task, num_envs=1, start_probs=(0.0, 0.0, 1.0), held_spread=0.0)
+    moved = []
+    for seed in range(12):
+        o, info = spread.reset_env(0, seed)
+        assert info["grasped"].all(), seed
+        o_straight = straight.reset_env(0, seed)[0]
+        moved.append(np.linalg.norm(o[0, 3:6] - o_straight[0, 3:6]))      # the left box
+        np.testing.assert_array_equal(o_straight, zero.reset_env(0, seed)[0])
+    assert max(moved) <= 0.04 + 0.01 and max(moved) > 0.02 and np.mean(moved) > 0.01, moved
+    with pytest.raises(Exception, match="held_spread"):
+        TrainConfig(start_probs=(0.5, 0.5, 0.0), held_spread=0.04)             # no held starts
+    with pytest.raises(ValueError, match="held_spread"):
+        BaxterBatch(task, num_envs=1, held_spread=-0.01)

@@ -612,6 +612,45 @@ def test_grasp_shaping_pays_k_for_the_grasp_and_takes_it_back_for_a_drop(tmp_pat
         curriculum_config(grasp_shaping=-0.5)
 
 
+def test_early_close_shaping_costs_k_while_a_hand_is_closed_before_its_reach(tmp_path):
+    """early_close_shaping k: phi is -k while an arm's fingers count as closed (the task's
+    finger-gap test) farther than reach_threshold from its box, else 0: an open hand at its
+    box, a hand holding its box and a closed hand within reach are free; the same hand closed
+    5 cm away costs k, so closing early pays -gamma k and opening again +k."""
+    from dualarm.envs.baxter import FINGER_CLOSED, observation_layout
+    from dualarm.training.loop import make_vector_env
+
+    config = curriculum_config(early_close_shaping=0.25, episodes=8)  # no other potential
+    layout = observation_layout(config.task_config().observes_joint_angles)
+    observed = []
+    for start in (2, 1):               # (2 copies, 2 arms, O): holding; at the box, open
+        vec = make_vector_env(config, 2, start=start)
+        observed.append(np.stack([vec.reset(i, 5 + i) for i in range(2)]))
+    held, open_ = observed
+    closed_near, closed_far = open_.copy(), open_.copy()
+    for o, offset in ((closed_near, 0.01), (closed_far, 0.05)):
+        o[..., layout["fingers"]] = FINGER_CLOSED
+        o[..., layout["object_rel_pos"]] = [offset, 0.0, 0.0]
+    trainer = Trainer.start(config, tmp_path / "run", progress=False)
+    try:
+        phi = lambda o: trainer.potential(torch.as_tensor(o, dtype=torch.float32))  # noqa: E731
+        for free in (held, open_, closed_near):
+            torch.testing.assert_close(phi(free), torch.zeros(2, 2))
+        torch.testing.assert_close(phi(closed_far), torch.full((2, 2), -0.25))
+        np.testing.assert_allclose(trainer.potential(closed_far), -0.25)     # numpy too
+        g, not_done = config.algo.gamma, torch.zeros(2)
+        as_t = lambda o: torch.as_tensor(o, dtype=torch.float32)  # noqa: E731
+        shaping = lambda o, o2: trainer.shaping({"obs": as_t(o), "next_obs": as_t(o2), "done": not_done})  # noqa: E731
+        far_open = open_.copy()
+        far_open[..., layout["object_rel_pos"]] = [0.05, 0.0, 0.0]
+        torch.testing.assert_close(shaping(far_open, closed_far), torch.full((2, 2), -0.25 * g))
+        torch.testing.assert_close(shaping(closed_far, far_open), torch.full((2, 2), 0.25))
+    finally:
+        trainer.close()
+    with pytest.raises(ValueError, match="early_close_shaping must be"):
+        curriculum_config(early_close_shaping=-0.5)
+
+
 def test_mirror_episodes_stores_each_episode_and_its_mirror_image(tmp_path):
     """With mirror_episodes the replay holds every real episode followed by its mirror image
     (dualarm.envs.mirror), guide term recomputed; episodes and returns count the real ones

@@ -44,6 +44,18 @@ _UP = np.array([0.0, 0.0, 1.0])
 APPROACH_HEIGHT = 0.05
 
 
+def disc_offset(rng: np.random.Generator, radius: float) -> np.ndarray:
+    """A point (2,) m drawn uniformly from the disc of ``radius`` m around the origin."""
+    r, angle = radius * np.sqrt(rng.uniform()), 2 * np.pi * rng.uniform()
+    return np.array([r * np.cos(angle), r * np.sin(angle)])
+
+
+def ball_offset(rng: np.random.Generator, radius: float) -> np.ndarray:
+    """A point (3,) m drawn uniformly from the ball of ``radius`` m around the origin."""
+    direction = rng.normal(size=3)
+    return radius * rng.uniform() ** (1 / 3) * direction / np.linalg.norm(direction)
+
+
 def finger_gap(fingers: np.ndarray) -> np.ndarray:
     """Distance between the two finger pads (m) from finger joints (..., 2) ordered (r, l)."""
     return _GAP_AT_ZERO + fingers[..., 1] - fingers[..., 0]
@@ -423,6 +435,14 @@ class BaxterBatch:
             fraction of the way from its home position to ``APPROACH_HEIGHT`` above its box
             (gripper down, fingers open) instead of at home: starts that cover the approach,
             so that the value of being at the box can spread back along it.
+        approach_spread: metres; with ``approach_starts``, the point above the box where an
+            approach start's line ends is moved by a uniform offset within a horizontal disc
+            of this radius, so that the starts near the box also need the last lateral
+            correction before the fingers may close. 0: straight above the box.
+        held_spread: metres; an arm that starts holding its box holds it at a point drawn
+            uniformly within a ball of this radius around the one on the way from the box's
+            start to its target, so that the held starts also need the carry's corrections
+            off that line. 0: on the line.
 
     Actions are (num_envs, 2, 4) in cartesian mode (dx, dy, dz, grip) and (num_envs, 2, 8)
     in joint mode (7 joint deltas, grip), arms in the order left, right, each value in
@@ -432,12 +452,19 @@ class BaxterBatch:
     def __init__(self, config: TaskConfig = TaskConfig(), constraints: ConstraintSet | None = None,
                  num_envs: int = 1, render_size: tuple[int, int] = (480, 640),
                  start_probs: tuple[float, float, float] | None = None,
-                 approach_starts: bool = False):
+                 approach_starts: bool = False, approach_spread: float = 0.0,
+                 held_spread: float = 0.0):
         if num_envs < 1:
             raise ValueError(f"num_envs must be at least 1, got {num_envs}")
         self.config = config
         self.start_probs = check_start_probs(start_probs)
         self.approach_starts = approach_starts
+        if approach_spread < 0:
+            raise ValueError(f"approach_spread must be >= 0 m, got {approach_spread}")
+        self.approach_spread = float(approach_spread)
+        if held_spread < 0:
+            raise ValueError(f"held_spread must be >= 0 m, got {held_spread}")
+        self.held_spread = float(held_spread)
         if config.condition == "none":
             if constraints is not None:
                 raise ValueError("condition 'none' has no guide term: pass constraints=None")
@@ -559,11 +586,13 @@ class BaxterBatch:
 
         grasp (1): the grip site at the resting box's centre, fingers open (reach done).
         align (2): the box lifted to a point a uniform fraction of the way from its start to
-        its target (at least ``lift_height`` + 1 cm above its resting height), between
+        its target (moved within ``held_spread`` of it; at least ``lift_height`` + 1 cm above
+        its resting height), between
         fingers closing on it (reach and grasp done). The arm's joints come from inverse
         kinematics with the gripper pointing down; a short settle (two control periods)
         lets the fingers take hold. Arms at reach (0) stay at home, or with
-        ``approach_starts`` begin a uniform fraction of the way to above their box.
+        ``approach_starts`` begin a uniform fraction of the way to above their box (moved
+        within ``approach_spread`` of it).
         """
         c, m, d, ix = self.config, self.model, self.datas[i], self.ix
         grip = d.site_xpos[ix.grip_site].copy()               # (2, 3) home grip sites
@@ -572,10 +601,14 @@ class BaxterBatch:
             if starts[arm] == 0:
                 if self.approach_starts:
                     above = box[arm] + APPROACH_HEIGHT * _UP
+                    if self.approach_spread > 0:       # drawn only then: same runs without it
+                        above[:2] += disc_offset(rng, self.approach_spread)
                     grip[arm] = grip[arm] + rng.uniform() * (above - grip[arm])
                 continue
             if starts[arm] == 2:
                 p = box[arm] + rng.uniform() * (self.target_pos[i, arm] - box[arm])
+                if self.held_spread > 0:           # drawn only then: same runs without it
+                    p = p + ball_offset(rng, self.held_spread)
                 p[2] = max(p[2], self._rule.lifted_z + 0.01)
                 box[arm] = p
             grip[arm] = box[arm]

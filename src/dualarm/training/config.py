@@ -77,6 +77,16 @@ class TrainConfig:
         approach_starts: an arm that starts a training episode at reach begins a uniform
             fraction of the way from home to just above its box instead of at home (needs
             ``start_probs``): training starts that cover the approach to the box.
+        approach_spread: metres; the approach starts' line ends at a point drawn uniformly
+            within a horizontal disc of this radius around the point above the box (needs
+            ``approach_starts``): the learner's reach from home fails by closing the hand 2-4
+            cm beside its box (docs/learning-runs.md, round 27), and the straight approach
+            starts never begin off the box's axis. 0: straight above the box.
+        held_spread: metres; an arm that starts a training episode holding its box holds it
+            at a point drawn uniformly within a ball of this radius around the one on the way
+            from the box's start to its target (needs ``start_probs`` with a held share): the
+            learner's carry stops 3-5 cm from the target (round 27), and the held starts
+            never begin off that line. 0: on the line.
         her_share: share of every replay batch whose goals are replaced by what the arms
             achieved later in the same episode, rewards recomputed (hindsight experience
             replay, Andrychowicz et al. 2017, "future" goals): the targets by where the
@@ -104,6 +114,13 @@ class TrainConfig:
             costs k when the box is dropped, where rg2 scaled with rc to 1 pays 0.005 (the
             grasp is the longest phase of the curriculum, docs/learning-runs.md, round 25).
             Adds to the other potentials. 0 turns it off.
+        early_close_shaping: k, in the learner's reward units: the potential loses k while an
+            arm's fingers count as closed (the task's test) with its grip site farther than
+            ``reach_threshold`` from its box, so closing the hand before the reach costs k at
+            once and opening it again pays k back. The learner's reach from home fails by
+            closing 2-4 cm from the box, a mistake whose cost otherwise shows only through
+            the grasp that then never comes (round 27). Adds to the other potentials. 0 turns
+            it off.
         mirror_episodes: store every training episode twice, as it happened and as its mirror
             image (``dualarm.envs.mirror``: the scene reflected left to right, the arms
             swapped, the guide term recomputed for the arm the joints then belong to), so
@@ -141,12 +158,15 @@ class TrainConfig:
     calm_radius: float | None = None
     near_box_radius: float = 0.05
     approach_starts: bool = False
+    approach_spread: float = 0.0
+    held_spread: float = 0.0
     reward_heads: bool = False
     her_share: float = 0.0
     her_goal_jitter: float = 0.0
     approach_shaping: float = 0.0
     carry_shaping: float = 0.0
     grasp_shaping: float = 0.0
+    early_close_shaping: float = 0.0
     mirror_episodes: bool = False
     demo_episodes: int = 0
     algo: DADDPGConfig = field(default_factory=DADDPGConfig)
@@ -206,7 +226,13 @@ class TrainConfig:
             if getattr(self, name) and not self.uses_start_states:
                 raise InputError(f"{name} moves the start states: give start_probs other "
                                  "than (1, 0, 0), for example [0.2, 0.2, 0.6]")
-        for name in ("approach_shaping", "carry_shaping", "grasp_shaping"):
+        if self.approach_spread < 0 or (self.approach_spread > 0 and not self.approach_starts):
+            raise InputError(f"approach_spread must be >= 0 m and needs approach_starts, got "
+                             f"{self.approach_spread}")
+        if self.held_spread < 0 or (self.held_spread > 0 and self.start_probs[2] == 0):
+            raise InputError(f"held_spread must be >= 0 m and needs a held share in start_probs, "
+                             f"got {self.held_spread}")
+        for name in ("approach_shaping", "carry_shaping", "grasp_shaping", "early_close_shaping"):
             if getattr(self, name) < 0:
                 raise InputError(f"{name} must be >= 0, got {getattr(self, name)}")
         if not 0 <= self.her_share <= 1:
@@ -231,6 +257,8 @@ class TrainConfig:
                 "approach_shaping": self.approach_shaping > 0,
                 "carry_shaping": self.carry_shaping > 0,
                 "grasp_shaping": self.grasp_shaping > 0,
+                "early_close_shaping": self.early_close_shaping > 0,
+                "approach_spread": self.approach_spread > 0, "held_spread": self.held_spread > 0,
                 "mirror_episodes": self.mirror_episodes,
                 "algo.grip_hold_eps": self.algo.grip_hold_eps > 0}
         return [name for name, on in used.items() if on]

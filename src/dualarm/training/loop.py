@@ -23,7 +23,7 @@ import torch
 
 from dualarm.atomic import atomic_copy
 from dualarm.envs.baxter import (HEAD_TERMS, GraspRule, ReachRelabeller, TargetRelabeller,
-                                 observation_layout)
+                                 closed_gap, finger_gap, observation_layout)
 from dualarm.envs.mirror import TaskMirror
 from dualarm.errors import DualarmError, InputError
 from dualarm.locks import DirectoryLock
@@ -74,7 +74,9 @@ def make_vector_env(config: TrainConfig, num_envs: int,
     if start:
         probs = tuple(float(k == start) for k in range(len(START_CLASSES)))
     return BaxterVector(config.task_config(), constraints, num_envs, probs,
-                        approach_starts=training and config.approach_starts)
+                        approach_starts=training and config.approach_starts,
+                        approach_spread=config.approach_spread if training else 0.0,
+                        held_spread=config.held_spread if training else 0.0)
 
 
 def box_offset_columns(task) -> slice:
@@ -101,14 +103,18 @@ def shaping_potential(config: TrainConfig):
     """The run's potential phi(obs) -> (..., A) for raw observations (..., A, O), numpy or
     torch, in the learner's reward units: -``approach_shaping`` x the grip-to-box distance
     - ``carry_shaping`` x the box-to-target distance (m) + ``grasp_shaping`` x (1 while the
-    arm holds its box as ``GraspRule`` counts the grasp, else 0). None when all are 0."""
+    arm holds its box as ``GraspRule`` counts the grasp, else 0) - ``early_close_shaping`` x (1
+    while the arm's fingers count as closed farther than ``reach_threshold`` from its box,
+    else 0). None when all are 0."""
     approach, carry, grasp = config.approach_shaping, config.carry_shaping, config.grasp_shaping
-    if approach == 0 and carry == 0 and grasp == 0:
+    early_close = config.early_close_shaping
+    if approach == 0 and carry == 0 and grasp == 0 and early_close == 0:
         return None
     task = config.task_config()
     layout = observation_layout(task.observes_joint_angles)
     rel, box, target = layout["object_rel_pos"], layout["object_pos"], layout["target_pos"]
     fingers, rule = layout["fingers"], GraspRule(task)
+    gap_closed, reach = closed_gap(task), task.reach_threshold
 
     def phi(obs):
         value = approach_potential(obs, rel, approach)
@@ -116,6 +122,9 @@ def shaping_potential(config: TrainConfig):
             value = value - carry * ((obs[..., target] - obs[..., box]) ** 2).sum(-1) ** 0.5
         if grasp > 0:
             value = value + grasp * rule.held(obs[..., rel], obs[..., fingers], obs[..., box])
+        if early_close > 0:                    # a hand closed before the reach cannot take its box
+            closed = finger_gap(obs[..., fingers]) <= gap_closed
+            value = value - early_close * (closed & (grip_to_box_distance(obs, rel) > reach))
         return value
     return phi
 
