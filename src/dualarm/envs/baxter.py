@@ -587,8 +587,7 @@ class BaxterBatch:
         grasp (1): the grip site at the resting box's centre, fingers open (reach done).
         align (2): the box lifted to a point a uniform fraction of the way from its start to
         its target (moved within ``held_spread`` of it; at least ``lift_height`` + 1 cm above
-        its resting height), between
-        fingers closing on it (reach and grasp done). The arm's joints come from inverse
+        its resting height), between fingers closing on it (reach and grasp done). The arm's joints come from inverse
         kinematics with the gripper pointing down; a short settle (two control periods)
         lets the fingers take hold. Arms at reach (0) stay at home, or with
         ``approach_starts`` begin a uniform fraction of the way to above their box (moved
