@@ -206,7 +206,7 @@ def test_goal_jitter_moves_each_hindsight_goal_within_its_ball():
     """With goal_jitter r every relabelled goal lies within r of a box position of its own
     episode's future, filling the ball (mean distance 3r/4 for a uniform 3-D ball), and the
     sampler's other draws are unchanged."""
-    from dualarm.rl.her import ball_offsets
+    from dualarm.sampling import ball_offsets
 
     task = TaskConfig()
     buffer = ReplayBuffer(1000, 2, 29, 4, 3)

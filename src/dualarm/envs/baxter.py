@@ -32,6 +32,7 @@ from dualarm.envs.config import TaskConfig
 from dualarm.errors import InputError
 from dualarm.envs.scene import GRIP_DOWN_QUAT, REST_POSTURE, compiled_model
 from dualarm.kinematics import ARMS, BAXTER_JOINT_LIMITS, BAXTER_JOINT_NAMES
+from dualarm.sampling import ball_offsets, disc_offset
 
 #: Finger joint targets (m) fully open and fully closed, columns r_finger, l_finger.
 FINGER_OPEN = np.array([-0.020833, 0.020833])
@@ -42,18 +43,6 @@ _GAP_AT_ZERO = 2 * (0.01 + 0.01725 - 0.0047 - 0.0035)
 _UP = np.array([0.0, 0.0, 1.0])
 #: Height (m) above its box at which the longest approach start ends (``approach_starts``).
 APPROACH_HEIGHT = 0.05
-
-
-def disc_offset(rng: np.random.Generator, radius: float) -> np.ndarray:
-    """A point (2,) m drawn uniformly from the disc of ``radius`` m around the origin."""
-    r, angle = radius * np.sqrt(rng.uniform()), 2 * np.pi * rng.uniform()
-    return np.array([r * np.cos(angle), r * np.sin(angle)])
-
-
-def ball_offset(rng: np.random.Generator, radius: float) -> np.ndarray:
-    """A point (3,) m drawn uniformly from the ball of ``radius`` m around the origin."""
-    direction = rng.normal(size=3)
-    return radius * rng.uniform() ** (1 / 3) * direction / np.linalg.norm(direction)
 
 
 def finger_gap(fingers: np.ndarray) -> np.ndarray:
@@ -607,7 +596,7 @@ class BaxterBatch:
             if starts[arm] == 2:
                 p = box[arm] + rng.uniform() * (self.target_pos[i, arm] - box[arm])
                 if self.held_spread > 0:           # drawn only then: same runs without it
-                    p = p + ball_offset(rng, self.held_spread)
+                    p = p + ball_offsets(rng, (3,), self.held_spread)
                 p[2] = max(p[2], self._rule.lifted_z + 0.01)
                 box[arm] = p
             grip[arm] = box[arm]

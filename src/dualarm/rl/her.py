@@ -15,6 +15,7 @@ import numpy as np
 import torch
 
 from dualarm.rl.replay import ReplayBuffer
+from dualarm.sampling import ball_offsets
 
 #: next_obs (n, A, O) -> the goals the agents achieved there, (n, A, G).
 Achieved = Callable[[np.ndarray], np.ndarray]
@@ -76,15 +77,6 @@ class HindsightSampler:
         if self.n_step > 1:
             n_step_returns(batch, b, idx, self.n_step, self.gamma, self.relabel, rows, goals)
         return {k: torch.from_numpy(v) for k, v in batch.items()}
-
-
-def ball_offsets(rng: np.random.Generator, shape: tuple, radius: float) -> np.ndarray:
-    """Points drawn uniformly from the ball of ``radius`` about 0 in the last axis of
-    ``shape`` (..., G): a uniform direction times radius x u^(1/G)."""
-    direction = rng.normal(size=shape)
-    direction /= np.maximum(np.linalg.norm(direction, axis=-1, keepdims=True), 1e-12)
-    scale = radius * rng.random(shape[:-1] + (1,)) ** (1.0 / shape[-1])
-    return direction * scale
 
 
 def n_step_returns(batch: dict, buffer: ReplayBuffer, idx: np.ndarray, n: int, gamma: float,
