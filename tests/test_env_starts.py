@@ -178,3 +178,36 @@ def test_held_spread_moves_the_held_box_off_the_way_to_its_target_and_keeps_it_h
         TrainConfig(start_probs=(0.5, 0.5, 0.0), held_spread=0.04)             # no held starts
     with pytest.raises(ValueError, match="held_spread"):
         BaxterBatch(task, num_envs=1, held_spread=-0.01)
+
+
+def test_grasp_spread_starts_the_open_hand_beside_and_above_its_box_clear_of_it():
+    """grasp_spread r: a grasp start's grip site lies within the upper half-ball of radius r
+    around its box's centre, drawn again while a finger pad would touch the box or the table,
+    so the open hand leaves the box where it rests; the starts cover offsets along the
+    fingers' axis too (pads above the box), some with the reach still to do; r = 0 is the
+    centred start, draw for draw."""
+    task = TaskConfig()
+    spread = BaxterBatch(task, num_envs=1, start_probs=(0.0, 1.0, 0.0), grasp_spread=0.05)
+    centre = BaxterBatch(task, num_envs=1, start_probs=(0.0, 1.0, 0.0))
+    zero = BaxterBatch(task, num_envs=1, start_probs=(0.0, 1.0, 0.0), grasp_spread=0.0)
+    offsets, subtasks = [], []
+    for seed in range(24):
+        o, info = spread.reset_env(0, seed)
+        o_centre = centre.reset_env(0, seed)[0]
+        offsets.append(-o[:, 6:9])                            # grip - box, (2, 3)
+        subtasks.extend(info["subtask"])
+        assert not info["grasped"].any(), seed
+        np.testing.assert_allclose(o[:, 3:6], o_centre[:, 3:6], atol=1e-3)   # the box unmoved
+        assert not spread._pads_touching(spread.datas[0], [0, 1]), seed
+        np.testing.assert_array_equal(o_centre, zero.reset_env(0, seed)[0])
+    offsets = np.concatenate(offsets)
+    norms = np.linalg.norm(offsets, axis=1)
+    assert norms.max() <= 0.05 + 0.003 and np.median(norms) > 0.025, norms
+    assert offsets[:, 2].min() > -0.003                        # never below the box's centre
+    assert np.abs(offsets[:, 0]).max() > 0.03                  # beside the box across the fingers
+    assert np.abs(offsets[:, 1]).max() > 0.02                  # ... and along them, pads above it
+    assert 0 in subtasks and 1 in subtasks                     # some need the reach, some not
+    with pytest.raises(Exception, match="grasp_spread"):
+        TrainConfig(start_probs=(0.5, 0.0, 0.5), grasp_spread=0.03)           # no grasp starts
+    with pytest.raises(ValueError, match="grasp_spread"):
+        BaxterBatch(task, num_envs=1, grasp_spread=-0.01)

@@ -235,3 +235,62 @@ def test_goal_jitter_moves_each_hindsight_goal_within_its_ball():
     assert abs(offsets.mean(axis=0)).max() < 0.02 * radius
     with pytest.raises(ValueError, match="goal_jitter"):
         HindsightSampler(buffer, lambda nxt: nxt[..., 3:6], relabel, share=1.0, goal_jitter=-1.0)
+
+
+def test_recombined_rows_join_two_steps_and_pay_the_coordination_bonus_only_when_both_align():
+    """recombine gives a row the right arm's half of another: the halves are copied whole,
+    each arm keeps the reward the environment paid its own half less the coordination bonus
+    of the step it came from, plus the bonus of the joined step (both boxes aligned), which
+    also ends the episode."""
+    task = TaskConfig()
+    x = expert_episode(3, task)
+    y = expert_episode(5, task)
+    assert x[5] and y[5]                             # both succeed on their last step
+    rc = task.coordinate_bonus
+    mid = len(x[0]) // 2
+    sources = [(x, -1), (x, mid), (y, -1)]           # success, not yet, success
+    batch = {k: np.stack([ep[i][t] for ep, t in sources]).astype(np.float64)
+             for i, k in ((0, "obs"), (1, "act"), (2, "rew"), (4, "next_obs"))}
+    batch["done"] = np.array([1.0, 0.0, 1.0])
+    coord = np.stack([ep[3][t][:, 2] for ep, t in sources])             # (3, 2) the env's bonus
+    assert coord[:, 0].tolist() == [rc, 0.0, rc]
+    original = {k: v.copy() for k, v in batch.items()}
+    rows, partners = np.array([0, 1, 2]), np.array([2, 2, 1])
+    TargetRelabeller(task, False).recombine(batch, rows, partners)
+    for key in ("obs", "act", "next_obs"):
+        np.testing.assert_array_equal(batch[key][:, 0], original[key][rows, 0])
+        np.testing.assert_array_equal(batch[key][:, 1], original[key][partners, 1])
+    joined = np.array([True, False, False])          # x's last + y's last; x mid + y last; y last + x mid
+    np.testing.assert_array_equal(batch["done"], joined)
+    own_terms = np.stack([original["rew"][rows, 0] - coord[rows, 0],
+                          original["rew"][partners, 1] - coord[partners, 1]], -1)
+    np.testing.assert_allclose(batch["rew"], own_terms + rc * joined[:, None], atol=1e-9)
+
+
+def test_the_sampler_recombines_its_share_of_rows_and_leaves_the_draws_alone_without_it():
+    task = TaskConfig()
+    buffer = ReplayBuffer(1000, 2, 29, 4)
+    for seed in (1, 2):
+        o, a, r, h, o2, term, env = expert_episode(seed, task)
+        buffer.add_episode(o, a, r, o2, term)
+    relabeller = TargetRelabeller(task, False)
+    plain = HindsightSampler(buffer, relabeller.achieved, relabeller.relabel, share=0.8)
+    zero = HindsightSampler(buffer, relabeller.achieved, relabeller.relabel, share=0.8,
+                            recombine=relabeller.recombine, recombine_share=0.0)
+    half = HindsightSampler(buffer, relabeller.achieved, relabeller.relabel, share=0.8,
+                            recombine=relabeller.recombine, recombine_share=0.5)
+    a, b = plain.sample(np.random.default_rng(0), 512), zero.sample(np.random.default_rng(0), 512)
+    for key in a:
+        assert np.array_equal(a[key].numpy(), b[key].numpy()), key
+    c = half.sample(np.random.default_rng(0), 512)
+    # a joined row's halves come from two different steps: their step counters differ
+    stored = buffer.data["obs"][:len(buffer)]
+    left_rows = [np.flatnonzero((stored[:, 0, :3] == row[0, :3]).all(-1)) for row in c["obs"].numpy()]
+    right_rows = [np.flatnonzero((stored[:, 1, :3] == row[1, :3]).all(-1)) for row in c["obs"].numpy()]
+    apart = np.mean([not set(l) & set(r) for l, r in zip(left_rows, right_rows)])
+    assert 0.3 < apart < 0.55, apart                 # about half the rows (a few join a row with itself)
+    with pytest.raises(ValueError, match="recombine_share"):
+        HindsightSampler(buffer, relabeller.achieved, relabeller.relabel, recombine_share=0.5)
+    with pytest.raises(ValueError, match="recombine_share"):
+        HindsightSampler(buffer, None, None, share=0.0, n_step=3, gamma=0.9,
+                         recombine=relabeller.recombine, recombine_share=0.5)

@@ -36,6 +36,10 @@ class HindsightSampler:
         n_step: with n > 1 each row sums the rewards of up to n steps of its episode
             (``n_step_returns``); the batch then carries ``discount`` (B,), gamma^m.
         gamma: the discount of those sums (needed with n > 1).
+        recombine: joins the left half of some rows with the right half of others
+            (``TargetRelabeller.recombine``; None with ``recombine_share`` 0).
+        recombine_share: fraction of each batch whose right arm's half comes from another
+            row of the batch, after the hindsight goals (1-step rows only).
         goal_jitter: radius (in the goals' units, m for positions) of a ball around each
             hindsight goal within which it is moved uniformly at random, per agent: the
             task's goals are met anywhere within a threshold of them, so a goal near the
@@ -46,7 +50,7 @@ class HindsightSampler:
 
     def __init__(self, buffer: ReplayBuffer, achieved: Achieved | None, relabel: Relabel | None,
                  share: float = 0.8, n_step: int = 1, gamma: float | None = None,
-                 goal_jitter: float = 0.0):
+                 goal_jitter: float = 0.0, recombine=None, recombine_share: float = 0.0):
         if not 0 <= share <= 1:
             raise ValueError(f"the hindsight share must be in [0, 1], got {share}")
         if share > 0 and (achieved is None or relabel is None):
@@ -58,6 +62,10 @@ class HindsightSampler:
         if goal_jitter < 0:
             raise ValueError(f"goal_jitter must be >= 0, got {goal_jitter}")
         self.goal_jitter = float(goal_jitter)
+        if not 0 <= recombine_share <= 1 or (recombine_share > 0 and (recombine is None or n_step > 1)):
+            raise ValueError(f"recombine_share must be in [0, 1] and needs the recombine function "
+                             f"and 1-step rows, got {recombine_share} with n_step {n_step}")
+        self.recombine, self.recombine_share = recombine, float(recombine_share)
 
     def sample(self, rng: np.random.Generator, batch_size: int) -> dict[str, torch.Tensor]:
         """A uniform batch in which about ``share`` of the rows carry a future goal of their
@@ -74,6 +82,9 @@ class HindsightSampler:
             if self.goal_jitter > 0:
                 goals = goals + ball_offsets(rng, goals.shape, self.goal_jitter).astype(goals.dtype)
             self.relabel(batch, rows, goals)
+        if self.recombine_share > 0:      # drawn only then: the same batches without it
+            joined = np.flatnonzero(rng.random(batch_size) < self.recombine_share)
+            self.recombine(batch, joined, rng.integers(0, batch_size, size=len(joined)))
         if self.n_step > 1:
             n_step_returns(batch, b, idx, self.n_step, self.gamma, self.relabel, rows, goals)
         return {k: torch.from_numpy(v) for k, v in batch.items()}

@@ -87,6 +87,12 @@ class TrainConfig:
             from the box's start to its target (needs ``start_probs`` with a held share): the
             learner's carry stops 3-5 cm from the target (round 27), and the held starts
             never begin off that line. 0: on the line.
+        grasp_spread: metres; an arm that starts a training episode at its box begins with
+            its open hand within an upper half-ball of this radius around the box's centre,
+            drawn again while a finger pad would touch the box or the table (needs a grasp
+            share in start_probs): the learner's slow seeds stall 2.5-5 cm beside and above
+            their box on the way from home, where no training start puts the hand
+            (docs/learning-runs.md, round 28). 0: at the centre.
         her_share: share of every replay batch whose goals are replaced by what the arms
             achieved later in the same episode, rewards recomputed (hindsight experience
             replay, Andrychowicz et al. 2017, "future" goals): the targets by where the
@@ -96,6 +102,13 @@ class TrainConfig:
             radius (goal-augmented replay, Lin et al. 2020): the task counts a box within
             ``align_threshold`` of its target as there, so goals near where the box went are
             as true as the exact ones. 0: HER's exact goals.
+        recombine_share: share of every replay batch whose right arm's half (observation,
+            action, reward, next observation) is taken from another row of the batch, the
+            coordination bonus and the episode's end computed again for the joined step: the
+            arms and their boxes never touch, so the halves of two steps make a third the
+            robot could have taken (counterfactual data augmentation, Pitis et al. 2020), and
+            an arm's success is no longer paid only in episodes where the other arm
+            succeeded at the same time. 0: rows as stored.
         approach_shaping: k, in the learner's reward units per metre: each arm's learner
             reward gains the potential-based term gamma * phi(s') - phi(s) with phi(s) = -k *
             (the distance from its grip site to its box), phi = 0 after a success (Ng, Harada
@@ -160,9 +173,11 @@ class TrainConfig:
     approach_starts: bool = False
     approach_spread: float = 0.0
     held_spread: float = 0.0
+    grasp_spread: float = 0.0
     reward_heads: bool = False
     her_share: float = 0.0
     her_goal_jitter: float = 0.0
+    recombine_share: float = 0.0
     approach_shaping: float = 0.0
     carry_shaping: float = 0.0
     grasp_shaping: float = 0.0
@@ -232,11 +247,18 @@ class TrainConfig:
         if self.held_spread < 0 or (self.held_spread > 0 and self.start_probs[2] == 0):
             raise InputError(f"held_spread must be >= 0 m and needs a held share in start_probs, "
                              f"got {self.held_spread}")
+        if self.grasp_spread < 0 or (self.grasp_spread > 0 and self.start_probs[1] == 0):
+            raise InputError(f"grasp_spread must be >= 0 m and needs a grasp share in start_probs, "
+                             f"got {self.grasp_spread}")
         for name in ("approach_shaping", "carry_shaping", "grasp_shaping", "early_close_shaping"):
             if getattr(self, name) < 0:
                 raise InputError(f"{name} must be >= 0, got {getattr(self, name)}")
         if not 0 <= self.her_share <= 1:
             raise InputError(f"her_share must be in [0, 1], got {self.her_share}")
+        if not 0 <= self.recombine_share <= 1 or (self.recombine_share > 0 and (
+                self.algo.n_step > 1 or self.task_config().success_at == "reach")):
+            raise InputError(f"recombine_share must be in [0, 1] and works on 1-step rows of the "
+                             f"full task (algo.n_step 1), got {self.recombine_share}")
         if self.her_goal_jitter < 0 or (self.her_goal_jitter > 0 and self.her_share == 0):
             raise InputError(f"her_goal_jitter must be >= 0 and needs her_share > 0, got "
                              f"{self.her_goal_jitter} with her_share {self.her_share}")
@@ -259,6 +281,8 @@ class TrainConfig:
                 "grasp_shaping": self.grasp_shaping > 0,
                 "early_close_shaping": self.early_close_shaping > 0,
                 "approach_spread": self.approach_spread > 0, "held_spread": self.held_spread > 0,
+                "recombine_share": self.recombine_share > 0,
+                "grasp_spread": self.grasp_spread > 0,
                 "mirror_episodes": self.mirror_episodes,
                 "algo.grip_hold_eps": self.algo.grip_hold_eps > 0}
         return [name for name, on in used.items() if on]

@@ -76,7 +76,8 @@ def make_vector_env(config: TrainConfig, num_envs: int,
     return BaxterVector(config.task_config(), constraints, num_envs, probs,
                         approach_starts=training and config.approach_starts,
                         approach_spread=config.approach_spread if training else 0.0,
-                        held_spread=config.held_spread if training else 0.0)
+                        held_spread=config.held_spread if training else 0.0,
+                        grasp_spread=config.grasp_spread if training else 0.0)
 
 
 def box_offset_columns(task) -> slice:
@@ -174,15 +175,18 @@ class Trainer:
         self.buffer = ReplayBuffer(config.algo.buffer_size, 2, v.obs_size, v.act_size,
                                    self.agent.num_heads)
         self.sampler = self.buffer
-        if config.her_share > 0 or config.algo.n_step > 1:
-            achieved = relabel = None
+        if config.her_share > 0 or config.algo.n_step > 1 or config.recombine_share > 0:
+            achieved = relabel = recombine = None
             if config.her_share > 0:
                 goals = ReachRelabeller if task.success_at == "reach" else TargetRelabeller
                 relabeller = goals(task, task.observes_joint_angles)
                 achieved, relabel = relabeller.achieved, relabeller.relabel
+            if config.recombine_share > 0:
+                recombine = TargetRelabeller(task, task.observes_joint_angles).recombine
             self.sampler = HindsightSampler(self.buffer, achieved, relabel, config.her_share,
                                             config.algo.n_step, config.algo.gamma,
-                                            config.her_goal_jitter)
+                                            config.her_goal_jitter, recombine,
+                                            config.recombine_share)
         self.mirror = TaskMirror(task, constraints) if config.mirror_episodes else None
         self.potential = shaping_potential(config)      # approach_shaping, carry_shaping
         # far_action_l2, near_random_eps, grip_hold_eps: each arm's box-minus-grip offset
