@@ -41,7 +41,6 @@ _FINGER_TRAVEL = FINGER_CLOSED - FINGER_OPEN
 #: Finger-pad gap (m) at finger joints (0, 0): the gap is this + l - r.
 _GAP_AT_ZERO = 2 * (0.01 + 0.01725 - 0.0047 - 0.0035)
 _UP = np.array([0.0, 0.0, 1.0])
-
 #: Draws of a ``grasp_spread`` start before it falls back to the box's centre.
 GRASP_SPREAD_TRIES = 8
 #: Height (m) above its box at which the longest approach start ends (``approach_starts``).
@@ -247,7 +246,6 @@ class TargetRelabeller:
             rew[rows] += distance + c.coordinate_bonus * (new_success.astype(float)
                                                           - old_success)[:, None]
         batch["done"][rows] = new_success
-
 
     def recombine(self, batch: dict, rows: np.ndarray, partners: np.ndarray) -> None:
         """Give ``batch`` rows ``rows`` the right arm's half of rows ``partners`` (both (k,)):
