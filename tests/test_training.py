@@ -245,10 +245,10 @@ def test_daddpg_learns_the_whole_task_without_demonstrations(tmp_path):
     """Reach, grasp and align from the normal reset, the paper's reward and constants, no
     demonstrations: the recipe (src/dualarm/data/recipe.yaml; what `dualarm train` and
     `dualarm pipeline` run), condition multi, seed 0, evaluated with its policy (the averaged
-    actors) on the 50 fixed placements. Measured (docs/mirror-runs, multi-seed0, the recipe
-    with mirrored replay): 0.85 first at 2,880 episodes, 1.00 at 6,000; in its 3 x 5
-    comparison every run reached 0.85 by 3,200 episodes, so the budget of 6,000 leaves room
-    for another machine's draw; about 10-15 minutes on one core.
+    actors) on the 50 fixed placements. Measured (docs/recombine-runs, multi-seed0, the recipe
+    with mirrored and recombined replay): 0.85 first at 1,920 episodes, 1.00 at 4,000; in its
+    3 x 5 comparison every run reached 0.85 by 2,720 episodes, so the budget of 6,000 leaves
+    room for another machine's draw; about 10-15 minutes on one core.
     It must also keep what it learned: the last evaluation within 0.1 of the best (issue 14's
     target)."""
     config = TrainConfig.recipe().with_(condition="multi", episodes=6000, seed=0)
