@@ -20,7 +20,6 @@ import time
 from pathlib import Path
 
 import torch
-import yaml
 
 from dualarm.training.config import TrainConfig
 from dualarm.training.loop import Trainer
@@ -38,11 +37,12 @@ def main() -> None:
     parser.add_argument("--no-eval", action="store_true",
                         help="turn evaluations and curriculum probes off: the training rounds alone")
     args = parser.parse_args()
-    fields = yaml.safe_load(args.config.read_text()) if args.config else {}
-    fields = {**fields, "torch_threads": args.threads, "checkpoint_minutes": 1e6}
+    # the config as `dualarm train --config` reads it (``extends`` included), then the
+    # benchmark's own settings
+    config = TrainConfig.load(args.config) if args.config else TrainConfig()
+    config = config.with_(torch_threads=args.threads, checkpoint_minutes=1e6)
     if args.no_eval:
-        fields.update(eval_every=0, curriculum_probe=0)
-    config = TrainConfig.from_dict(fields, where=str(args.config or "defaults"))
+        config = config.with_(eval_every=0, curriculum_probe=0)
     every = config.eval_every
     episodes = args.episodes or (2 * every if every else 160)
     warmup = args.warmup or (every if every else 64)
