@@ -256,8 +256,8 @@ class TargetRelabeller:
         Eq. 18, and the end of the episode are computed again for the joined step.
         Transitions that ended by a physics failure (done without success) stay ended."""
         c, where = self.config, self.layout["target_pos"]
-        _, own = self._terms(batch["next_obs"][rows], batch["next_obs"][rows][..., where])
-        _, theirs = self._terms(batch["next_obs"][partners], batch["next_obs"][partners][..., where])
+        _, stored = self._terms(batch["next_obs"], batch["next_obs"][..., where])   # every row, once
+        own, theirs = stored[rows], stored[partners]
         failed = (batch["done"][rows] > 0) & ~own | (batch["done"][partners] > 0) & ~theirs
         for key in ("obs", "act", "rew", "next_obs"):
             batch[key][rows, 1] = batch[key][partners, 1]

@@ -177,12 +177,13 @@ class Trainer:
         self.sampler = self.buffer
         if config.her_share > 0 or config.algo.n_step > 1 or config.recombine_share > 0:
             achieved = relabel = recombine = None
-            if config.her_share > 0:
+            if config.her_share > 0 or config.recombine_share > 0:
                 goals = ReachRelabeller if task.success_at == "reach" else TargetRelabeller
                 relabeller = goals(task, task.observes_joint_angles)
+            if config.her_share > 0:
                 achieved, relabel = relabeller.achieved, relabeller.relabel
-            if config.recombine_share > 0:
-                recombine = TargetRelabeller(task, task.observes_joint_angles).recombine
+            if config.recombine_share > 0:         # the full task's (TrainConfig checks it)
+                recombine = relabeller.recombine
             self.sampler = HindsightSampler(self.buffer, achieved, relabel, config.her_share,
                                             config.algo.n_step, config.algo.gamma,
                                             config.her_goal_jitter, recombine,
