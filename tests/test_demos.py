@@ -15,7 +15,7 @@ from dualarm.demos.labels import read_labels
 from dualarm.demos.loading import baxter_joints, DemoJoints, load_demo_dir
 from dualarm.demos.segmentation import hand_points
 from dualarm.demos.formats import DEFAULT_DEMO_DIR, GRIP_COLUMNS
-from dualarm.demos.generate import generate_demos, HumanModel, swivel, time_warp, tremor, write_demo_set
+from dualarm.sim_demos.generate import generate_demos, HumanModel, swivel, time_warp, tremor, write_demo_set
 from dualarm.errors import InputError
 from dualarm.kinematics import baxter_arm
 from dualarm.mocap.io import read_recording

@@ -71,6 +71,34 @@ def test_no_import_cycle_beyond_the_known_ones():
     assert cycles(import_graph()) <= KNOWN_CYCLES
 
 
+def package_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    """Package (or top-level module) -> those it imports: ``dualarm.envs.baxter`` counts as
+    ``envs``; the root package ``dualarm`` itself is left out (it imports nothing of ours)."""
+    def top(module: str) -> str | None:
+        parts = module.split(".")
+        return parts[1] if len(parts) > 1 else None
+
+    packages: dict[str, set[str]] = {}
+    for module, imports in graph.items():
+        if top(module) is None:
+            continue
+        deps = packages.setdefault(top(module), set())
+        deps.update(t for t in map(top, imports) if t is not None and t != top(module))
+    return packages
+
+
+def test_no_package_level_import_cycle():
+    """The packages form layers (task < kinematics < mocap < demos < constraints < envs < rl <
+    training < experiments < cli): a module imports only from its own stage and those below."""
+    assert cycles(package_graph(import_graph())) == set()
+
+
+def test_package_graph_sees_a_cycle_between_packages():
+    graph = {"dualarm.a.x": {"dualarm.b.y"}, "dualarm.b.y": set(), "dualarm.b.z": {"dualarm.a.w"},
+             "dualarm.a.w": set()}
+    assert cycles(package_graph(graph)) == {frozenset("ab")}
+
+
 def test_cycle_finder_finds_a_cycle():
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == {frozenset("abc")}
 

@@ -9,7 +9,7 @@ from scipy import stats
 
 from dualarm.cli.main import main
 from dualarm.errors import InputError
-from dualarm.experiments.metrics import (condition_ratios, convergence, episodes_to_target,
+from dualarm.curves import (condition_ratios, convergence, episodes_to_target,
                                          max_average, mean_ci, median_ratio_ci, ratio,
                                          trailing_mean)
 from dualarm.experiments.report import write_report

@@ -69,7 +69,8 @@ def cmd_constraints_plot(args: argparse.Namespace) -> int:
 
 def cmd_constraints_analyze(args: argparse.Namespace) -> int:
     """Volume fractions and the expert's share of steps inside, for one or more constraint files."""
-    from dualarm.constraints.analysis import arm_volume_fractions, expert_inside_fractions, expert_rollouts
+    from dualarm.constraints.analysis import arm_volume_fractions, expert_inside_fractions
+    from dualarm.envs.rollout import expert_rollouts
     from dualarm.constraints.constraint_set import ConstraintSet
     from dualarm.task import JOINT_COLUMNS
 

@@ -34,7 +34,7 @@ def check_suffix(path: Path, suffixes: tuple[str, ...]) -> None:
 
 def cmd_demos_generate(args: argparse.Namespace) -> int:
     """Generate a demonstration set (IMU CSVs and labels) from the scripted expert."""
-    from dualarm.demos.generate import generate_demos, write_demo_set
+    from dualarm.sim_demos.generate import generate_demos, write_demo_set
 
     out = Path(args.output)
     demos = generate_demos(args.count, args.seed, progress=not args.quiet)

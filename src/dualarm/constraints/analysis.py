@@ -1,5 +1,6 @@
 """What to check before training: how much of Baxter's joint box each segment leaves, and how
-often the scripted expert's own joint angles stay inside."""
+often given joint angles (the scripted expert's: ``dualarm.envs.rollout.expert_rollouts``)
+stay inside."""
 
 from __future__ import annotations
 
@@ -18,39 +19,6 @@ def arm_volume_fractions(cs: ConstraintSet, limits: np.ndarray = BAXTER_JOINT_LI
     """(S, 2) fraction of one arm's 7-D joint box (left, right) each segment leaves."""
     w = cs.width_fractions(limits)
     return np.stack([w[:, :_N_ARM].prod(axis=1), w[:, _N_ARM:].prod(axis=1)], axis=1)
-
-
-def expert_rollouts(episodes: int, seed: int = 1000, progress: bool = False
-                    ) -> tuple[np.ndarray, np.ndarray, float]:
-    """Joint angles and sub-tasks of the scripted expert over seeded episodes.
-
-    Args:
-        episodes: number of episodes (reset seeds ``seed .. seed + episodes - 1``).
-    Returns:
-        q (N, 14) rad, the joint angles after each step of every episode; subtasks (N, 2),
-        each arm's sub-task after that step; the success rate.
-    """
-    from dualarm.envs import make_core
-    from dualarm.envs.rollout import make_policy, run_episode
-
-    env = make_core()
-    policy = make_policy("expert", env)
-    seeds = range(seed, seed + episodes)
-    if progress:
-        import sys
-
-        from tqdm import tqdm
-        seeds = tqdm(seeds, desc="expert", unit="ep", file=sys.stderr)
-    qs, subs, wins = [], [], 0
-    try:
-        for s in seeds:
-            ep = run_episode(env, policy, s)
-            qs.append(ep.joint_angles[1:])
-            subs.append(ep.subtasks)
-            wins += ep.success
-    finally:
-        env.close()
-    return np.concatenate(qs), np.concatenate(subs), wins / episodes
 
 
 @dataclass(frozen=True)

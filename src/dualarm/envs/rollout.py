@@ -77,3 +77,35 @@ def run_episode(env: BaxterReachGraspAlign, policy: Policy, seed: int,
             break
     return Episode(seed, bool(result.info["is_success"]), env.steps, returns,
                    np.array(subtasks), np.array(joints), np.array(actions), frames)
+
+
+def expert_rollouts(episodes: int, seed: int = 1000, progress: bool = False
+                    ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Joint angles and sub-tasks of the scripted expert over seeded episodes.
+
+    Args:
+        episodes: number of episodes (reset seeds ``seed .. seed + episodes - 1``).
+    Returns:
+        q (N, 14) rad, the joint angles after each step of every episode; subtasks (N, 2),
+        each arm's sub-task after that step; the success rate.
+    """
+    from dualarm.envs import make_core
+
+    env = make_core()
+    policy = make_policy("expert", env)
+    seeds = range(seed, seed + episodes)
+    if progress:
+        import sys
+
+        from tqdm import tqdm
+        seeds = tqdm(seeds, desc="expert", unit="ep", file=sys.stderr)
+    qs, subs, wins = [], [], 0
+    try:
+        for s in seeds:
+            ep = run_episode(env, policy, s)
+            qs.append(ep.joint_angles[1:])
+            subs.append(ep.subtasks)
+            wins += ep.success
+    finally:
+        env.close()
+    return np.concatenate(qs), np.concatenate(subs), wins / episodes

@@ -3,7 +3,7 @@
 ``dualarm.experiments.summary.build_report`` reads every run directory under a comparison
 directory and summarises each condition over its seeds; this module writes it: ``write_report`` writes the figures, ``table.md``, ``table.csv`` and
 ``index.html``. The definitions (moving average, episodes to target, convergence, confidence
-interval) are in ``dualarm.experiments.metrics`` and docs/report.md.
+interval) are in ``dualarm.curves`` and docs/report.md.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from pathlib import Path
 
 from dualarm.atomic import atomic_open
 from dualarm.experiments.findings import findings
-from dualarm.experiments.metrics import RATIO_PAIRS
+from dualarm.curves import RATIO_PAIRS
 from dualarm.experiments.summary import (QUANTITY_NAMES, RATIO_QUANTITIES, Report, SeedStat, build_report,
                                          paper_ratio, paper_value, ratio_note, relative_to_root)
 from dualarm.task import CONDITION_NAMES, TARGET_SUCCESS

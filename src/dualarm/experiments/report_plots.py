@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dualarm.atomic import atomic_path
-from dualarm.experiments.metrics import mean_ci
+from dualarm.curves import mean_ci
 
 if TYPE_CHECKING:
     from dualarm.experiments.summary import ConditionSummary, Report

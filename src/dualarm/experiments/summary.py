@@ -1,6 +1,6 @@
 """A comparison summarised per condition over its seeds, next to the paper's values: episodes
 to target success, convergence, maximum average success, their 95% intervals and the ratios
-between conditions (``build_report``). The definitions are in ``dualarm.experiments.metrics``
+between conditions (``build_report``). The definitions are in ``dualarm.curves``
 and docs/report.md."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numpy as np
 
 from dualarm.errors import InputError
 from dualarm.task import CONDITIONS, TARGET_SUCCESS
-from dualarm.experiments.metrics import (RATIO_PAIRS, Convergence, condition_ratios, convergence,
+from dualarm.curves import (RATIO_PAIRS, Convergence, condition_ratios, convergence,
                                          episodes_to_target, max_average, mean_ci,
                                          median_ratio_ci, trailing_mean)
 from dualarm.experiments.run_logs import EVAL_SUCCESS_COLUMNS, Run, find_run_dirs, load_run

@@ -21,7 +21,7 @@ def _read(path: Path) -> dict[str, np.ndarray]:
 
 def moving_average(x: np.ndarray, window: int) -> np.ndarray:
     """Trailing mean over up to ``window`` values (shorter at the start), same length as x."""
-    from dualarm.experiments.metrics import trailing_mean
+    from dualarm.curves import trailing_mean
 
     return trailing_mean(x, window)[0]
 
