@@ -9,7 +9,7 @@ import yaml
 
 from dualarm.cli.main import main
 
-SMALL = {"algo": {"hidden": [16, 16], "batch_size": 32, "warmup_steps": 100, "buffer_size": 5000},
+SMALL = {"extends": "paper", "algo": {"hidden": [16, 16], "batch_size": 32, "warmup_steps": 100, "buffer_size": 5000},
          "eval_episodes": 4, "task": {"max_episode_steps": 10}}
 
 
@@ -198,8 +198,8 @@ def test_bad_inputs_name_what_is_wrong(tmp_path, capsys):
 
 
 def test_train_without_a_config_uses_the_recipe(tmp_path, capsys):
-    """`dualarm train` with no --config trains with the shipped recipe (dualarm/data/recipe.yaml),
-    whose conditions all observe the joint angles; the options given override it."""
+    """`dualarm train` with no --config trains with the recipe (``TrainConfig()``), whose
+    conditions all observe the joint angles; the options given override it."""
     from dualarm.training import TrainConfig
 
     out = tmp_path / "run"
@@ -211,7 +211,7 @@ def test_train_without_a_config_uses_the_recipe(tmp_path, capsys):
     assert saved.carry_shaping == 1.0 and saved.algo.twin_min_weight == 0.5
     assert saved.algo.eval_actor == "average" and saved.algo.policy_average > 0
     assert saved.task_config().observes_joint_angles          # none observes them too
-    assert TrainConfig().with_(condition="none").task_config().observes_joint_angles is False
+    assert TrainConfig.paper().with_(condition="none").task_config().observes_joint_angles is False
 
 
 def test_shipped_expert_demos_config_trains(tmp_path, capsys):
@@ -254,6 +254,42 @@ def test_a_config_that_extends_the_recipe_changes_only_what_it_names(tmp_path):
     assert config.task["joint_angles_in_obs"] is True           # kept from the recipe's task
     changed = {k for k, v in config.to_dict().items() if recipe.to_dict()[k] != v}
     assert changed == {"start_curriculum", "algo", "task"}
+
+
+def test_a_file_layers_on_the_recipe_unless_it_extends_the_paper(tmp_path):
+    """A file without ``extends`` changes the recipe (its task merged key by key, so the joint
+    angles stay observed); ``extends: paper`` and ``--config paper`` give the paper's DDPG."""
+    from dualarm.training.config import TrainConfig
+
+    plain = tmp_path / "plain.yaml"
+    plain.write_text("task: {max_episode_steps: 80}\nalgo: {batch_size: 64}\n")
+    config = TrainConfig.load(plain)
+    assert config.task == {"joint_angles_in_obs": True, "max_episode_steps": 80}
+    assert config.algo == TrainConfig().algo.with_(batch_size=64)
+    assert config.with_(task=TrainConfig().task, algo=TrainConfig().algo) == TrainConfig()
+    paper = tmp_path / "paper.yaml"
+    paper.write_text("extends: paper\nalgo: {batch_size: 64}\n")
+    assert TrainConfig.load(paper) == TrainConfig.paper().with_(algo=TrainConfig.paper().algo.with_(batch_size=64))
+    assert TrainConfig.load("paper") == TrainConfig.paper() != TrainConfig()
+    assert not TrainConfig.paper().algo.twin_critics and TrainConfig.paper().her_share == 0
+    for preset in (TrainConfig(), TrainConfig.paper()):           # what a run writes reads back
+        assert TrainConfig.from_dict(preset.to_dict()) == preset
+        assert TrainConfig.from_dict(preset.to_dict(), base=TrainConfig.paper()) == preset
+
+
+def test_a_run_config_written_before_the_recipe_was_the_default_reads_as_it_ran(tmp_path):
+    """A run's config.yaml that lacks the fields added since (written when the defaults were
+    the paper's) takes the paper's values for them, the values that run used."""
+    from dualarm.training.config import TrainConfig
+
+    old = {k: v for k, v in TrainConfig.paper().with_(condition="none").to_dict().items()
+           if k not in ("mirror_episodes", "recombine_share", "task")}
+    old["algo"] = {k: v for k, v in old["algo"].items() if k not in ("policy_average", "eval_actor")}
+    path = tmp_path / "config.yaml"
+    path.write_text(yaml.safe_dump(old))
+    saved = TrainConfig.load_saved(path)
+    assert saved == TrainConfig.paper().with_(condition="none")
+    assert not saved.task_config().observes_joint_angles
 
 
 def test_extends_chains_and_resolves_constraints_against_the_file_that_names_them(tmp_path):

@@ -41,7 +41,7 @@ def snapshot(run_dir):
 @pytest.fixture(scope="module")
 def base_yaml(tmp_path_factory):
     path = tmp_path_factory.mktemp("base") / "base.yaml"
-    path.write_text(yaml.safe_dump(TINY))
+    path.write_text(yaml.safe_dump({"extends": "paper", **TINY}))
     return path
 
 
@@ -57,7 +57,7 @@ def local(tmp_path_factory, base_yaml):
 
 def reference(tmp_path, condition, seed, episodes=EPISODES):
     """The same run trained by `dualarm train`'s code path, in this process."""
-    config = TrainConfig.from_dict(TINY).with_(condition=condition, seed=seed, episodes=episodes)
+    config = TrainConfig.from_dict(TINY, base=TrainConfig.paper()).with_(condition=condition, seed=seed, episodes=episodes)
     train(config, tmp_path / f"ref-{condition}-{seed}", progress=False)
     return rows(tmp_path / f"ref-{condition}-{seed}" / "metrics.csv")
 
@@ -93,7 +93,7 @@ def test_conflicting_arguments_name_the_field_and_change_nothing(local, base_yam
     out, _ = local
     before = (out / "comparison.yaml").read_bytes()
     other = tmp_path / "other.yaml"
-    other.write_text(yaml.safe_dump({**TINY, "algo": {**TINY["algo"], "hidden": [64, 64]}}))
+    other.write_text(yaml.safe_dump({"extends": "paper", **TINY, "algo": {**TINY["algo"], "hidden": [64, 64]}}))
     capsys.readouterr()
     assert main(["compare", "--config", str(other), "-o", str(out)]) == 2
     err = capsys.readouterr().err
@@ -116,7 +116,7 @@ def test_conflicting_arguments_name_the_field_and_change_nothing(local, base_yam
 def test_constraints_dir_is_copied_and_a_changed_file_conflicts(tmp_path):
     cons = tmp_path / "cons"
     shutil.copytree(default_constraints_path("multi").parent, cons)
-    base = TrainConfig.from_dict(TINY)
+    base = TrainConfig.from_dict(TINY, base=TrainConfig.paper())
     comparison = prepare(tmp_path / "cmp", CompareRequest(conditions=("none", "multi"), seeds=(0,),
                                                           episodes=2, base=base, constraints_dir=cons))
     copy = tmp_path / "cmp" / "constraints" / "multi.yaml"
@@ -139,7 +139,7 @@ def test_rerun_skips_finished_resumes_partial_and_reports_failed(tmp_path, base_
     whose checkpoint is corrupt fails with its error while the others finish."""
     out = tmp_path / "cmp"
     comparison = prepare(out, CompareRequest(conditions=("none",), seeds=(0, 1, 2), episodes=EPISODES,
-                                             base=TrainConfig.from_dict(TINY)))
+                                             base=TrainConfig.from_dict(TINY, base=TrainConfig.paper())))
     plans = {p.seed: p for p in comparison.runs()}
     assert {p.state for p in plans.values()} == {"new"}
     assert execute(task_for(comparison, plans[0]), in_place=True).ok
@@ -201,7 +201,7 @@ def test_ray_without_a_shared_filesystem_ships_run_directories(ray_instance, loc
     shutil.copytree(default_constraints_path("multi").parent, cons)
     out = tmp_path / "cmp"
     comparison = prepare(out, CompareRequest(conditions=("none", "multi"), seeds=(0,), episodes=EPISODES,
-                                             base=TrainConfig.from_dict(TINY), constraints_dir=cons))
+                                             base=TrainConfig.from_dict(TINY, base=TrainConfig.paper()), constraints_dir=cons))
     none_run = out / "runs" / "none-seed0"
     Trainer.start(comparison.run_config("none", 0).with_(episodes=2), none_run, progress=False).run()
     result = compare(out, CompareRequest(), RayBackend(shared_fs=False), poll_s=0.2, progress=False)

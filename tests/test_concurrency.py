@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-TINY = ("num_envs: 2\nepisodes: 400\neval_every: 0\ncheckpoint_minutes: 0.01\n"
+TINY = ("extends: paper\nnum_envs: 2\nepisodes: 400\neval_every: 0\ncheckpoint_minutes: 0.01\n"
         "algo: {hidden: [16, 16], batch_size: 16, warmup_steps: 0, buffer_size: 5000}\n"
         "task: {max_episode_steps: 5}\n")
 

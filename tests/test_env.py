@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from dualarm.constraints.constraint_set import ConstraintSet
-from dualarm.envs.baxter import (_GAP_AT_ZERO, OBS_LAYOUT, BaxterReachGraspAlign, StepResult,
-                                 home_posture, observation_layout)
+from dualarm.envs.baxter import BaxterReachGraspAlign, StepResult, home_posture
+from dualarm.envs.rules import GAP_AT_ZERO, OBS_LAYOUT, observation_layout
 from dualarm.envs.config import TaskConfig
 from dualarm.errors import InputError
 from dualarm.envs.expert import ScriptedExpert
@@ -69,7 +69,7 @@ def box_pos(env) -> np.ndarray:
 
 def finger_gap(env) -> np.ndarray:
     q = env.data.qpos[env.ix.finger_qpos]
-    return _GAP_AT_ZERO + q[:, 1] - q[:, 0]
+    return GAP_AT_ZERO + q[:, 1] - q[:, 0]
 
 
 def assert_reward_is_sum_of_terms(result: StepResult) -> None:

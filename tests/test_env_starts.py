@@ -88,7 +88,7 @@ def test_start_probabilities_are_checked(bad):
 
 
 def test_only_training_copies_use_the_start_distribution():
-    config = TrainConfig(condition="none", start_probs=(0.0, 0.0, 1.0))
+    config = TrainConfig.paper().with_(condition="none", start_probs=(0.0, 0.0, 1.0))
     assert TrainConfig.from_dict(config.to_dict()) == config
     train = make_vector_env(config, 1, training=True)
     evaluation = make_vector_env(config, 1)
@@ -117,11 +117,11 @@ def test_approach_starts_put_the_open_gripper_between_home_and_above_the_box():
             off_line = np.linalg.norm(o[arm, :3] - (start[arm] + u * way))
             assert -0.01 <= u <= 1.01 and off_line < 0.01, (seed, arm, u, off_line)
             fractions.append(u)
-        from dualarm.envs.baxter import closed_gap, finger_gap
+        from dualarm.envs.rules import closed_gap, finger_gap
         assert (finger_gap(o[:, 9:11]) > closed_gap(task) + 0.01).all()     # fingers open
     assert min(fractions) < 0.3 and max(fractions) > 0.7          # spread along the way
     with pytest.raises(Exception, match="approach_starts"):
-        TrainConfig(approach_starts=True)
+        TrainConfig.paper().with_(approach_starts=True)
 
 
 def test_approach_spread_ends_the_approach_starts_beside_the_point_above_the_box():
@@ -151,9 +151,9 @@ def test_approach_spread_ends_the_approach_starts_beside_the_point_above_the_box
     assert len(offsets) >= 10
     assert max(offsets) <= 0.04 + 0.005 and max(offsets) > 0.02, offsets
     with pytest.raises(Exception, match="approach_spread"):
-        TrainConfig(start_probs=(0.2, 0.2, 0.6), approach_spread=0.04)          # needs approach_starts
+        TrainConfig.paper().with_(start_probs=(0.2, 0.2, 0.6), approach_spread=0.04)          # needs approach_starts
     with pytest.raises(Exception, match="approach_spread"):
-        TrainConfig(start_probs=(0.2, 0.2, 0.6), approach_starts=True, approach_spread=-0.01)
+        TrainConfig.paper().with_(start_probs=(0.2, 0.2, 0.6), approach_starts=True, approach_spread=-0.01)
     with pytest.raises(ValueError, match="approach_spread"):
         BaxterBatch(task, num_envs=1, approach_spread=-0.01)
 
@@ -175,7 +175,7 @@ def test_held_spread_moves_the_held_box_off_the_way_to_its_target_and_keeps_it_h
         np.testing.assert_array_equal(o_straight, zero.reset_env(0, seed)[0])
     assert max(moved) <= 0.04 + 0.01 and max(moved) > 0.02 and np.mean(moved) > 0.01, moved
     with pytest.raises(Exception, match="held_spread"):
-        TrainConfig(start_probs=(0.5, 0.5, 0.0), held_spread=0.04)             # no held starts
+        TrainConfig.paper().with_(start_probs=(0.5, 0.5, 0.0), held_spread=0.04)             # no held starts
     with pytest.raises(ValueError, match="held_spread"):
         BaxterBatch(task, num_envs=1, held_spread=-0.01)
 
@@ -208,6 +208,6 @@ def test_grasp_spread_starts_the_open_hand_beside_and_above_its_box_clear_of_it(
     assert np.abs(offsets[:, 1]).max() > 0.02                  # ... and along them, pads above it
     assert 0 in subtasks and 1 in subtasks                     # some need the reach, some not
     with pytest.raises(Exception, match="grasp_spread"):
-        TrainConfig(start_probs=(0.5, 0.0, 0.5), grasp_spread=0.03)           # no grasp starts
+        TrainConfig.paper().with_(start_probs=(0.5, 0.0, 0.5), grasp_spread=0.03)           # no grasp starts
     with pytest.raises(ValueError, match="grasp_spread"):
         BaxterBatch(task, num_envs=1, grasp_spread=-0.01)

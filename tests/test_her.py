@@ -7,7 +7,9 @@ import dualarm  # noqa: F401
 import numpy as np
 import pytest
 
-from dualarm.envs.baxter import HEAD_TERMS, BaxterBatch, TargetRelabeller
+from dualarm.envs.baxter import BaxterBatch
+from dualarm.envs.rules import HEAD_TERMS
+from dualarm.training.relabel import TargetRelabeller
 from dualarm.envs.config import TaskConfig
 from dualarm.envs.expert import ScriptedExpert
 from dualarm.rl.her import HindsightSampler
@@ -55,8 +57,8 @@ def test_relabelling_with_where_the_boxes_went_pays_the_coordination_bonus():
     task = TaskConfig()
     o, a, r, h, o2, term, env = expert_episode(5, task)
     relabeller = TargetRelabeller(task, False)
-    held = np.flatnonzero([relabeller._terms(o2[t:t + 1], o2[t:t + 1, :, -3:])[0].all()
-                           and (relabeller._terms(o2[t:t + 1], o2[t:t + 1, :, -3:])[0] < 0).all()
+    held = np.flatnonzero([relabeller.goals.target_terms(o2[t:t + 1], o2[t:t + 1, :, -3:])[0].all()
+                           and (relabeller.goals.target_terms(o2[t:t + 1], o2[t:t + 1, :, -3:])[0] < 0).all()
                            for t in range(len(o))])
     k = int(held[len(held) // 2])                 # a step at which both boxes are carried
     goals = relabeller.achieved(o2[k:k + 1])[0]
@@ -102,7 +104,7 @@ def test_reach_relabelling_with_the_real_boxes_changes_nothing_and_with_the_grip
     """The reach task: relabelling with the boxes where they are leaves rewards and ends as the
     environment gave them; with the boxes moved to where the grip sites were at step k, both
     arms are within reach there: rc is paid and the episode ends at k."""
-    from dualarm.envs.baxter import ReachRelabeller
+    from dualarm.training.relabel import ReachRelabeller
 
     task = TaskConfig(success_at="reach", max_episode_steps=30)
     o, a, r, h, o2, term, env = expert_episode(2, task)

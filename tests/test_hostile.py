@@ -29,7 +29,7 @@ from dualarm.training import TrainConfig, train
 TINY = {"num_envs": 2, "episodes": 2, "eval_every": 2, "eval_episodes": 2,
         "algo": {"hidden": [16, 16], "batch_size": 16, "warmup_steps": 0, "buffer_size": 2000},
         "task": {"max_episode_steps": 5}}
-GOOD_CONFIG = "num_envs: 2\neval_every: 0\nepisodes: 1\nalgo: {hidden: [16, 16], batch_size: 16}\n"
+GOOD_CONFIG = "extends: paper\nnum_envs: 2\neval_every: 0\nepisodes: 1\nalgo: {hidden: [16, 16], batch_size: 16}\n"
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +39,7 @@ def world(tmp_path_factory) -> Path:
     write_csv(example_recording(), root / "rec.csv")
     shutil.copy(default_constraints_path("multi"), root / "c.yaml")
     (root / "good.yaml").write_text(GOOD_CONFIG)
-    train(TrainConfig.from_dict(TINY), root / "run", progress=False)
+    train(TrainConfig.from_dict(TINY, base=TrainConfig.paper()), root / "run", progress=False)
     return root
 
 

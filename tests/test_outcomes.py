@@ -54,7 +54,7 @@ def test_an_arm_that_moves_away_has_moved_without_reaching():
 
 def toward_above(obs, height, grip):
     """Both arms move to ``height`` m above their boxes' centres, grip command ``grip``."""
-    from dualarm.envs.baxter import observation_layout
+    from dualarm.envs.rules import observation_layout
 
     rel = obs[:, observation_layout(TASK.observes_joint_angles)["object_rel_pos"]] + [0, 0, height]
     a = np.zeros((2, 4))
@@ -103,7 +103,7 @@ def test_closing_then_lifting_holds_the_box_away_from_its_target():
 def test_a_carry_that_stops_short_is_held_just_off_the_target():
     """From holding the box, moved to 5 cm beside the target and kept there: held, with
     every box about 5 cm from its target (the carry fell short, not the grasp)."""
-    from dualarm.envs.baxter import observation_layout
+    from dualarm.envs.rules import observation_layout
 
     layout = observation_layout(TASK.observes_joint_angles)
 

@@ -13,7 +13,7 @@ TINY = {"num_envs": 2, "eval_every": 2, "eval_episodes": 2,
 
 def test_pipeline_extracts_trains_reports_and_resumes(tmp_path, capsys):
     base = tmp_path / "base.yaml"
-    base.write_text(yaml.safe_dump(TINY))
+    base.write_text(yaml.safe_dump({"extends": "paper", **TINY}))
     out = tmp_path / "pipe"
     argv = ["pipeline", "-o", str(out), "--episodes", "2", "--conditions", "none,multi",
             "--seeds", "0", "--workers", "2", "--config", str(base)]
@@ -57,7 +57,7 @@ def test_pipeline_defaults_fill_a_new_comparison_and_leave_an_existing_one_alone
     given = pipeline_request(out, CompareRequest(seeds=(4, 5), episodes=30))
     assert (given.seeds, given.episodes) == ((4, 5), 30)
     from dualarm.training import TrainConfig
-    with_base = pipeline_request(out, CompareRequest(base=TrainConfig(episodes=40)))
+    with_base = pipeline_request(out, CompareRequest(base=TrainConfig.paper().with_(episodes=40)))
     assert (with_base.seeds, with_base.episodes) == ((0,), None)     # the base's 40 stand
     prepare(out, CompareRequest(conditions=("none",), seeds=(1, 2), episodes=10000))
     # an existing comparison keeps its grid and budget (6000 would shorten its runs)

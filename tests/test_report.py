@@ -188,7 +188,7 @@ def write_run(root, condition, seed, success, returns, wall, eval_rows=(), plann
               name=None, **config):
     d = root / (name or f"runs/{condition}-seed{seed}")
     d.mkdir(parents=True)
-    TrainConfig(condition=condition, seed=seed, episodes=planned or len(success), **config).save(
+    TrainConfig.paper().with_(condition=condition, seed=seed, episodes=planned or len(success), **config).save(
         d / "config.yaml")
     with open(d / "metrics.csv", "w", newline="") as f:
         w = csv.writer(f, lineterminator="\n")

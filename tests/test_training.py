@@ -37,7 +37,7 @@ def rows(path, drop=("wall_time_s",)):
 def test_daddpg_solves_the_two_point_mass_task(tmp_path):
     """Learning is tested by learning: >= 90% evaluation success (50 fixed episodes) after
     600 episodes, about 40 s on one core (seeds 0-3 measured: 1.0, 0.96, 1.0, 1.0)."""
-    config = TrainConfig(condition="none", episodes=600, num_envs=8, eval_every=100,
+    config = TrainConfig.paper().with_(condition="none", episodes=600, num_envs=8, eval_every=100,
                          eval_episodes=50, algo=TOY_ALGO, seed=1)
     result = train(config, tmp_path / "run", make_env=TwoPointMassEnv, progress=False)
     assert result.episodes == 600
@@ -52,7 +52,7 @@ def test_daddpg_solves_the_two_point_mass_task(tmp_path):
 
 def test_same_seed_gives_identical_baxter_metrics(tmp_path):
     algo = DADDPGConfig(hidden=(32, 32), batch_size=32, warmup_steps=200, buffer_size=5000)
-    config = TrainConfig(condition="none", episodes=20, num_envs=4, eval_every=0, algo=algo,
+    config = TrainConfig.paper().with_(condition="none", episodes=20, num_envs=4, eval_every=0, algo=algo,
                          task={"max_episode_steps": 20}, seed=7)
     train(config, tmp_path / "a", progress=False)
     train(config, tmp_path / "b", progress=False)
@@ -68,7 +68,7 @@ def test_averaged_actors_are_evaluated_beside_without_changing_training(tmp_path
     of the run without them. eval_actor "average" makes them the run's policy and still
     trains the same episodes: the curriculum's probes act with the online actors."""
     algo = DADDPGConfig(hidden=(32, 32), batch_size=32, warmup_steps=100, buffer_size=5000)
-    config = TrainConfig(condition="none", episodes=24, num_envs=4, eval_every=8,
+    config = TrainConfig.paper().with_(condition="none", episodes=24, num_envs=4, eval_every=8,
                          eval_episodes=4, algo=algo, task={"max_episode_steps": 20}, seed=5,
                          start_probs=(0.2, 0.2, 0.6), start_curriculum=0.5, curriculum_probe=4)
     averaged = config.with_(algo=algo.with_(policy_average=0.05))
@@ -105,7 +105,7 @@ KILLED_RUN = textwrap.dedent("""
     from dualarm.training import TrainConfig, train
     algo = DADDPGConfig(hidden=(32, 32), batch_size=64, updates_per_step=0.5, warmup_steps=300,
                         buffer_size=50_000)
-    config = TrainConfig(condition="none", episodes=160, num_envs=8, eval_every=40,
+    config = TrainConfig.paper().with_(condition="none", episodes=160, num_envs=8, eval_every=40,
                          eval_episodes=8, checkpoint_every=16, algo=algo, seed=3)
     train(config, sys.argv[1], make_env=TwoPointMassEnv, progress=False)
 """)
@@ -148,7 +148,7 @@ def small_toy_config(**changes):
     base = dict(condition="none", episodes=32, num_envs=8, eval_every=0, checkpoint_every=8,
                 algo=algo)
     base.update(changes)
-    return TrainConfig(**base)
+    return TrainConfig.paper().with_(**base)
 
 
 def test_resume_extends_a_finished_run(tmp_path):
@@ -226,12 +226,12 @@ def test_daddpg_learns_the_baxter_reach_to_80_percent_without_demonstrations(tmp
     inside the learner, targets clipped to [-1, 1], and hindsight boxes (each arm's box
     relabelled with where its grip site went later in the episode, HER's "future" goals,
     share 0.8). Success on the 32 fixed evaluation placements, deterministic policy, best
-    evaluation (what `dualarm eval` loads). Measured (docs/learning-runs.md, round 5, R2):
+    evaluation (what `dualarm eval` loads). Measured (docs/learning-runs.md, the cheaper learner):
     0.8 first at 1,120, 960 and 1,360 episodes with seeds 0, 1, 2, so the budget is 1,600
     (until 2026-12-03 it was 1,120, which seed 0 met at its last evaluation: a pass that a
     machine with other floating point could lose); about 5 minutes on one core."""
     algo = DADDPGConfig(hidden=(128, 128), reward_scale=1 / 4000, q_clip=1.0, action_l2=0.02)
-    config = TrainConfig(condition="none", episodes=1600, num_envs=16, eval_every=80,
+    config = TrainConfig.paper().with_(condition="none", episodes=1600, num_envs=16, eval_every=80,
                          eval_episodes=32, her_share=0.8, algo=algo, seed=0,
                          task={"success_at": "reach", "max_episode_steps": 30})
     train(config, tmp_path / "run", progress=False)
@@ -243,7 +243,7 @@ def test_daddpg_learns_the_baxter_reach_to_80_percent_without_demonstrations(tmp
 @pytest.mark.paper_scale
 def test_daddpg_learns_the_whole_task_without_demonstrations(tmp_path):
     """Reach, grasp and align from the normal reset, the paper's reward and constants, no
-    demonstrations: the recipe (src/dualarm/data/recipe.yaml; what `dualarm train` and
+    demonstrations: the recipe (``TrainConfig()``; what `dualarm train` and
     `dualarm pipeline` run), condition multi, seed 0, evaluated with its policy (the averaged
     actors) on the 50 fixed placements. Measured (docs/recombine-runs, multi-seed0, the recipe
     with mirrored and recombined replay): 0.85 first at 1,920 episodes, 1.00 at 4,000; in its
@@ -251,8 +251,8 @@ def test_daddpg_learns_the_whole_task_without_demonstrations(tmp_path):
     budget, leaves room for another machine's draw; about 6-8 minutes on one core.
     It must also keep what it learned: the last evaluation within 0.1 of the best (issue 14's
     target), read at the comparison's budget: the same run dips to 0.76-0.80 at 5,760-6,000
-    episodes and is back at 0.94 by 6,080 (docs/round28-runs/recipe10k-multi0)."""
-    config = TrainConfig.recipe().with_(condition="multi", episodes=4000, seed=0)
+    episodes and is back at 0.94 by 6,080 (docs/results)."""
+    config = TrainConfig().with_(condition="multi", episodes=4000, seed=0)
     train(config, tmp_path / "run", progress=False)
     success = [float(r["success_rate"]) for r in rows(tmp_path / "run" / "eval.csv")]
     assert success[0] == 0.0                                  # it starts unable
@@ -272,7 +272,7 @@ def test_daddpg_with_demonstrations_learns_the_baxter_reach_to_80_percent(tmp_pa
     one machine and in neither on another."""
     algo = DADDPGConfig(hidden=(128, 128), reward_scale=1 / 4000, q_clip=1.0, action_l2=0.02,
                         demo_batch_size=64, bc_weight=30.0)
-    config = TrainConfig(condition="none", episodes=480, num_envs=16, eval_every=80,
+    config = TrainConfig.paper().with_(condition="none", episodes=480, num_envs=16, eval_every=80,
                          eval_episodes=32, her_share=0.8, demo_episodes=64, algo=algo, seed=0,
                          task={"success_at": "reach", "max_episode_steps": 30})
     train(config, tmp_path / "run", progress=False)
@@ -288,7 +288,7 @@ def demo_config(**changes):
                 demo_episodes=4, algo=algo, task={"max_episode_steps": 20, "success_at": "reach"},
                 seed=2)
     base.update(changes)
-    return TrainConfig(**base)
+    return TrainConfig.paper().with_(**base)
 
 
 def test_demonstrations_are_the_expert_in_the_runs_own_environment():
@@ -327,11 +327,11 @@ def test_run_with_demonstrations_resumes_exactly(tmp_path):
 
 def test_demonstration_settings_are_checked():
     with pytest.raises(ValueError, match="demo_episodes"):
-        TrainConfig(algo=DADDPGConfig(demo_batch_size=8))
+        TrainConfig.paper().with_(algo=DADDPGConfig(demo_batch_size=8))
     with pytest.raises(ValueError, match="demo_episodes must be >= 0"):
-        TrainConfig(demo_episodes=-1)
+        TrainConfig.paper().with_(demo_episodes=-1)
     with pytest.raises(ValueError, match="cartesian control only"):
-        TrainConfig(demo_episodes=2, task={"control": "joint"})
+        TrainConfig.paper().with_(demo_episodes=2, task={"control": "joint"})
     with pytest.raises(Exception, match="custom environment"):
         Trainer.start(small_toy_config(demo_episodes=2), "unused", make_env=TwoPointMassEnv)
 
@@ -343,12 +343,12 @@ def curriculum_config(**changes):
                 checkpoint_every=8, algo=algo, task={"max_episode_steps": 20},
                 start_probs=(0.4, 0.2, 0.4), her_share=0.8, seed=3)
     base.update(changes)
-    return TrainConfig(**base)
+    return TrainConfig.paper().with_(**base)
 
 
 def box_offset_obs(config, obs_size, offsets) -> np.ndarray:
     """Observations (B, A, O), zero but for each arm's box-minus-grip offset, offsets (B, A, 3) m."""
-    from dualarm.envs.baxter import observation_layout
+    from dualarm.envs.rules import observation_layout
 
     rel = observation_layout(config.task_config().observes_joint_angles)["object_rel_pos"]
     obs = np.zeros((*np.shape(offsets)[:2], obs_size))
@@ -413,7 +413,7 @@ def test_reach_action_l2_applies_while_the_frontier_is_the_normal_start(tmp_path
     finally:
         trainer.close()
     with pytest.raises(ValueError, match="reach_action_l2 follows"):
-        TrainConfig(reach_action_l2=0.001)
+        TrainConfig.paper().with_(reach_action_l2=0.001)
     with pytest.raises(ValueError, match="reach_action_l2 must be"):
         curriculum_config(start_curriculum=0.5, reach_action_l2=-1.0)
 
@@ -551,7 +551,7 @@ def test_approach_shaping_is_potential_based_on_the_grip_to_box_distance(tmp_pat
 def test_carry_shaping_adds_a_potential_on_the_box_to_target_distance(tmp_path):
     """carry_shaping k: phi gains -k * |target - box| per arm, beside approach_shaping's term;
     a box that does not move adds the constant -(1 - gamma) phi."""
-    from dualarm.envs.baxter import observation_layout
+    from dualarm.envs.rules import observation_layout
 
     config = curriculum_config(approach_shaping=2.0, carry_shaping=3.0, episodes=8)
     layout = observation_layout(config.task_config().observes_joint_angles)
@@ -581,7 +581,7 @@ def test_grasp_shaping_pays_k_for_the_grasp_and_takes_it_back_for_a_drop(tmp_pat
     GraspRule on the observation), so making the grasp pays gamma k, a drop costs k and
     holding on -(1 - gamma) k; on real observations of arms started holding their boxes and
     at their boxes with the fingers open."""
-    from dualarm.envs.baxter import GraspRule, observation_layout
+    from dualarm.envs.rules import GraspRule, observation_layout
     from dualarm.training.loop import make_vector_env
 
     config = curriculum_config(grasp_shaping=0.5, episodes=8)       # no other potential
@@ -618,7 +618,7 @@ def test_early_close_shaping_costs_k_while_a_hand_is_closed_before_its_reach(tmp
     finger-gap test) farther than reach_threshold from its box, else 0: an open hand at its
     box, a hand holding its box and a closed hand within reach are free; the same hand closed
     5 cm away costs k, so closing early pays -gamma k and opening again +k."""
-    from dualarm.envs.baxter import FINGER_CLOSED, observation_layout
+    from dualarm.envs.rules import FINGER_CLOSED, observation_layout
     from dualarm.training.loop import make_vector_env
 
     config = curriculum_config(early_close_shaping=0.25, episodes=8)  # no other potential
@@ -690,15 +690,15 @@ def test_mirror_episodes_stores_each_episode_and_its_mirror_image(tmp_path):
 
 def test_curriculum_options_are_checked(tmp_path):
     with pytest.raises(ValueError, match="start_curriculum must be in"):
-        TrainConfig(start_probs=(0.2, 0.2, 0.6), start_curriculum=1.5)
+        TrainConfig.paper().with_(start_probs=(0.2, 0.2, 0.6), start_curriculum=1.5)
     with pytest.raises(ValueError, match="start_curriculum moves the start states"):
-        TrainConfig(start_curriculum=0.5)
+        TrainConfig.paper().with_(start_curriculum=0.5)
     with pytest.raises(ValueError, match="her_share"):
-        TrainConfig(her_share=1.5)
+        TrainConfig.paper().with_(her_share=1.5)
     with pytest.raises(ValueError, match="her_goal_jitter"):
-        TrainConfig(her_goal_jitter=0.03)                 # no hindsight goals to move
+        TrainConfig.paper().with_(her_goal_jitter=0.03)                 # no hindsight goals to move
     with pytest.raises(ValueError, match="her_goal_jitter"):
-        TrainConfig(her_share=0.8, her_goal_jitter=-0.01)
+        TrainConfig.paper().with_(her_share=0.8, her_goal_jitter=-0.01)
     with pytest.raises(Exception, match="start_probs"):
         Trainer.start(small_toy_config(start_probs=(0.0, 0.0, 1.0)), tmp_path / "toy",
                       make_env=TwoPointMassEnv, progress=False)

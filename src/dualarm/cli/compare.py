@@ -64,10 +64,10 @@ def grid_options(p: argparse.ArgumentParser, seeds: str = "0,1,2",
     p.add_argument("--ray-address", metavar="ADDR",
                    help="Ray cluster to submit to, e.g. auto or ray://HOST:10001 (default: start "
                         "a local Ray instance)")
-    p.add_argument("--config", type=InputPath, metavar="BASE.yaml",
-                   help="TrainConfig fields for every run (as `dualarm train --config`); "
-                        "condition, seed and constraints are set per run. Default: the recipe, "
-                        "src/dualarm/data/recipe.yaml, as `dualarm train` uses it")
+    p.add_argument("--config", type=InputPath, metavar="BASE.yaml|paper",
+                   help="TrainConfig fields for every run, or a preset (as `dualarm train "
+                        "--config`); condition, seed and constraints are set per run. Default: "
+                        "the recipe, as `dualarm train` uses it")
 
 
 def add_compare_command(sub) -> None:

@@ -56,7 +56,7 @@ def add_pipeline_command(sub) -> None:
                     "(C2&C3) constraints from the shipped demonstrations, train every "
                     "condition x seed (`dualarm compare`), and write the report (`dualarm "
                     "report`). Run it again to resume. Every run uses the recipe "
-                    "(src/dualarm/data/recipe.yaml) unless --config says otherwise. The defaults "
+                    "(TrainConfig's defaults) unless --config says otherwise. The defaults "
                     "(one seed per condition, 6000 episodes, all runs at once) are long enough "
                     "for every condition to learn; --episodes 10000 --seeds 0,1,2,3,4 is the "
                     "full reproduction.")

@@ -25,7 +25,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         print(f"resuming {args.resume} at episode {trainer.episodes} of {trainer.config.episodes}",
               file=sys.stderr)
     else:
-        config = TrainConfig.load(args.config) if args.config else TrainConfig.recipe()
+        config = TrainConfig.load(args.config) if args.config else TrainConfig()
         changes = {k: v for k, v in (("condition", args.condition), ("episodes", args.episodes),
                                      ("seed", args.seed), ("num_envs", args.num_envs)) if v is not None}
         if args.constraints is not None:
@@ -70,11 +70,11 @@ def add_train_command(sub) -> None:
     train.add_argument("--num-envs", type=positive_int, help="environment copies stepped together (default: 16)")
     train.add_argument("--out", type=OutputDir, metavar="DIR",
                        help="run directory (default: runs/CONDITION-seedSEED)")
-    train.add_argument("--config", type=InputPath, metavar="FILE.yaml",
-                       help="training settings (any fields of a run's config.yaml; the fields "
-                            "it leaves out take TrainConfig's defaults, the paper's plain DDPG; "
-                            "the options above override them). Default: the recipe, "
-                            "dualarm/data/recipe.yaml")
+    train.add_argument("--config", type=InputPath, metavar="FILE.yaml|paper",
+                       help="training settings: a YAML file of any fields of a run's config.yaml "
+                            "(the fields it leaves out take the recipe's, or a preset's with "
+                            "`extends: paper`; the options above override them), or a preset: "
+                            "recipe (the default, TrainConfig()) or paper (the paper's plain DDPG)")
     train.add_argument("--resume", type=InputPath, metavar="DIR",
                        help="continue the run in DIR from its last checkpoint")
     train.set_defaults(func=cmd_train)

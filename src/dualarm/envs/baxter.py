@@ -29,109 +29,16 @@ import numpy as np
 
 from dualarm.constraints.constraint_set import ConstraintSet
 from dualarm.envs.config import TaskConfig
+from dualarm.envs.rules import (FINGER_CLOSED, FINGER_OPEN, GAP_AT_ZERO, GraspRule, OBS_LAYOUT, UP, finger_targets, observation_layout)
 from dualarm.errors import InputError
 from dualarm.envs.scene import GRIP_DOWN_QUAT, REST_POSTURE, compiled_model
 from dualarm.kinematics import ARMS, BAXTER_JOINT_LIMITS, BAXTER_JOINT_NAMES
 from dualarm.sampling import ball_offsets, disc_offset
 
-#: Finger joint targets (m) fully open and fully closed, columns r_finger, l_finger.
-FINGER_OPEN = np.array([-0.020833, 0.020833])
-FINGER_CLOSED = np.array([0.0115, -0.0115])
-_FINGER_TRAVEL = FINGER_CLOSED - FINGER_OPEN
-#: Finger-pad gap (m) at finger joints (0, 0): the gap is this + l - r.
-_GAP_AT_ZERO = 2 * (0.01 + 0.01725 - 0.0047 - 0.0035)
-_UP = np.array([0.0, 0.0, 1.0])
 #: Draws of a ``grasp_spread`` start before it falls back to the box's centre.
 GRASP_SPREAD_TRIES = 8
 #: Height (m) above its box at which the longest approach start ends (``approach_starts``).
 APPROACH_HEIGHT = 0.05
-
-
-def finger_gap(fingers: np.ndarray) -> np.ndarray:
-    """Distance between the two finger pads (m) from finger joints (..., 2) ordered (r, l)."""
-    return _GAP_AT_ZERO + fingers[..., 1] - fingers[..., 0]
-
-
-def finger_targets(closure: np.ndarray) -> np.ndarray:
-    """Finger joint targets (..., 2) ordered (r, l) for grip closure (...,): 0 open .. 1 closed."""
-    return FINGER_OPEN + np.asarray(closure)[..., None] * _FINGER_TRAVEL
-
-
-def closed_gap(config: TaskConfig) -> float:
-    """Largest finger gap (m) at which the fingers count as closed on a box."""
-    return 2 * config.scene.box_half_size + config.grasp_gap_margin
-
-
-#: Per-arm observation layout (paper Section 3.2.1.2): name -> size. "joint_angles" is
-#: present only when the configuration asks for it.
-OBS_LAYOUT = (
-    ("grip_pos", 3),         # grip-site position, m (world)
-    ("joint_angles", 7),     # s0..w2, rad
-    ("object_pos", 3),       # box centre, m
-    ("object_rel_pos", 3),   # box centre - grip site, m
-    ("fingers", 2),          # finger joint positions (r, l), m
-    ("object_quat", 4),      # box orientation (w, x, y, z), w >= 0
-    ("object_linvel", 3),    # box linear velocity, m/s (world)
-    ("object_angvel", 3),    # box angular velocity, rad/s (box frame)
-    ("grip_linvel", 3),      # grip-site mean velocity over the last step, m/s
-    ("finger_vel", 2),       # finger joint velocities, m/s
-    ("target_pos", 3),       # the arm's target, m
-)
-
-
-def observation_layout(joint_angles: bool) -> dict[str, slice]:
-    """Slices of each field in one arm's observation vector."""
-    layout, start = {}, 0
-    for name, size in OBS_LAYOUT:
-        if name == "joint_angles" and not joint_angles:
-            continue
-        layout[name] = slice(start, start + size)
-        start += size
-    return layout
-
-
-class GraspRule:
-    """The task's grasp and align predicates from the physical state, one definition for the
-    environment and for hindsight relabelling (lengths in m).
-
-    A box is grasped when it is within ``grasp_tolerance`` of the grip site, the finger gap
-    is at most the box width plus ``grasp_gap_margin`` and the box is ``lift_height`` above
-    its resting height; it is aligned when grasped and within ``align_threshold`` of its target.
-    """
-
-    def __init__(self, config: TaskConfig):
-        self.tolerance = config.grasp_tolerance
-        self.reach_threshold = config.reach_threshold
-        self.closed_gap = closed_gap(config)
-        self.lifted_z = config.scene.table_height + config.scene.box_half_size + config.lift_height
-        self.align_sq = config.align_threshold ** 2
-
-    def held(self, rel, fingers, box):
-        """The grasp predicate as 0/1 floats (...,), numpy or torch alike (for the learner's
-        shaping potential): rel = box - grip (..., 3), finger joints (..., 2), box centres (..., 3)."""
-        return self._grasped((rel * rel).sum(-1) ** 0.5, fingers, box) * 1.0
-
-    def _grasped(self, to_box, fingers, box):
-        """The grasp predicate (...,) bool from the grip-to-box distance (...,), the finger
-        joints (..., 2) and the box centres (..., 3); numpy or torch."""
-        return (to_box < self.tolerance) & (finger_gap(fingers) <= self.closed_gap) \
-            & (box[..., 2] > self.lifted_z)
-
-    def progress(self, to_box, grasped):
-        """(reached, sub-task) (...,) from the grip-to-box distance and the grasp predicate
-        (...,): reach is done within ``reach_threshold`` or once grasped; the sub-task is
-        0 reach, 1 grasp, 2 align."""
-        reached = grasped | (to_box < self.reach_threshold)
-        return reached, reached.astype(np.int64) + grasped
-
-    def __call__(self, rel: np.ndarray, fingers: np.ndarray, box: np.ndarray,
-                 targets: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(distance grip site to box, grasped, aligned), each (...,) from rel = box - grip
-        (..., 3), finger joints (..., 2), box centres (..., 3) and targets (..., 3)."""
-        to_box = np.sqrt((rel * rel).sum(axis=-1))
-        grasped = self._grasped(to_box, fingers, box)
-        off = box - targets
-        return to_box, grasped, grasped & ((off * off).sum(axis=-1) < self.align_sq)
 
 
 def check_start_probs(probs) -> np.ndarray | None:
@@ -190,145 +97,6 @@ def solve_grip_ik(model: mujoco.MjModel, data: mujoco.MjData, ix: "_Indices",
 #: (m) and orientation (w, x, y, z); the box's linear and angular velocity, the fingers' velocity.
 QPOS_JOINTS, QPOS_FINGERS, QPOS_BOX_POS, QPOS_BOX_QUAT = slice(0, 7), slice(7, 9), slice(9, 12), slice(12, 16)
 QVEL_BOX, QVEL_FINGERS = slice(0, 6), slice(6, 8)
-
-#: The reward split into the critics' heads (``DADDPG``'s ``head_scales``): per-step terms,
-#: goal bonuses (rg1, rg2), coordination bonus (rc).
-HEAD_TERMS = (("distance", "guide"), ("goal",), ("coordinate",))
-
-
-class TargetRelabeller:
-    """Hindsight goals for the task: each arm's target replaced by where its box was later.
-
-    ``achieved(next_obs)`` gives the box positions (n, 2, 3); ``relabel`` rewrites a batch's
-    rows for new targets: the target in both arms' observations, the distance term of an
-    arm that holds its box (its goal is then the target, Eq. 17), the coordination bonus
-    and the end of the episode (both boxes held within ``align_threshold`` of their new
-    targets, Eq. 18). The guide term and rg1/rg2 do not depend on the targets. Rewards may be
-    whole (n, 2) or split as ``HEAD_TERMS`` (n, 2, 3); observations are (n, 2, O) laid out
-    as ``observation_layout`` says.
-    """
-
-    def __init__(self, config: TaskConfig, joint_angles: bool):
-        if config.goal != "subtask":
-            raise ValueError("hindsight targets follow the 'subtask' goal of the distance term")
-        self.config = config
-        self.layout = observation_layout(joint_angles)
-        self.rule = GraspRule(config)
-
-    def achieved(self, next_obs: np.ndarray) -> np.ndarray:
-        """Box positions (n, 2, 3) m in observations (n, 2, O)."""
-        return next_obs[..., self.layout["object_pos"]]
-
-    def _terms(self, next_obs: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(distance to the target of held boxes' arms (n, 2) m or 0, success (n,)) for targets."""
-        L = self.layout
-        grip, box = next_obs[..., L["grip_pos"]], next_obs[..., L["object_pos"]]
-        _, held, aligned = self.rule(next_obs[..., L["object_rel_pos"]], next_obs[..., L["fingers"]],
-                                     box, targets)
-        to_target = targets - grip
-        distance = np.where(held, -np.sqrt((to_target * to_target).sum(-1)), 0.0)
-        return distance, aligned.all(axis=-1)
-
-    def relabel(self, batch: dict, rows: np.ndarray, targets: np.ndarray) -> None:
-        """Rewrite ``batch`` rows ``rows`` (obs, next_obs, rew, done) for targets (len(rows), 2, 3)."""
-        c, where = self.config, self.layout["target_pos"]
-        nxt = batch["next_obs"][rows]
-        old_distance, old_success = self._terms(nxt, nxt[..., where])
-        new_distance, new_success = self._terms(nxt, targets)
-        batch["obs"][rows, :, where] = targets
-        batch["next_obs"][rows, :, where] = targets
-        distance = new_distance - old_distance                         # (k, 2)
-        rew = batch["rew"]
-        if rew.ndim == 3:                 # heads (distance + guide, goal, coordinate)
-            rew[rows, :, 0] += distance
-            rew[rows, :, 2] = c.coordinate_bonus * new_success[:, None]
-        else:
-            rew[rows] += distance + c.coordinate_bonus * (new_success.astype(float)
-                                                          - old_success)[:, None]
-        batch["done"][rows] = new_success
-
-    def recombine(self, batch: dict, rows: np.ndarray, partners: np.ndarray) -> None:
-        """Give ``batch`` rows ``rows`` the right arm's half of rows ``partners`` (both (k,)):
-        its observation, action, reward and next observation, next to the row's own left
-        half. The arms and their boxes do not touch, so the two halves make a step the robot
-        could have taken (counterfactual data augmentation of locally independent parts,
-        Pitis et al. 2020); the only term that couples them, the coordination bonus of
-        Eq. 18, and the end of the episode are computed again for the joined step.
-        Transitions that ended by a physics failure (done without success) stay ended."""
-        c, where = self.config, self.layout["target_pos"]
-        _, stored = self._terms(batch["next_obs"], batch["next_obs"][..., where])   # every row, once
-        own, theirs = stored[rows], stored[partners]
-        failed = (batch["done"][rows] > 0) & ~own | (batch["done"][partners] > 0) & ~theirs
-        for key in ("obs", "act", "rew", "next_obs"):
-            batch[key][rows, 1] = batch[key][partners, 1]
-        nxt = batch["next_obs"][rows]
-        _, joined = self._terms(nxt, nxt[..., where])
-        rew = batch["rew"]
-        if rew.ndim == 3:                 # heads (distance + guide, goal, coordinate)
-            rew[rows, :, 2] = c.coordinate_bonus * joined[:, None]
-        else:
-            was = np.stack([own, theirs], axis=-1).astype(float)            # (k, 2)
-            rew[rows] += c.coordinate_bonus * (joined[:, None] - was)
-        batch["done"][rows] = joined | failed
-
-
-class ReachRelabeller:
-    """Hindsight goals for the reach task (``success_at="reach"``): each arm's box replaced by
-    where its grip site was later in the episode, as HER does on FetchReach.
-
-    ``achieved(next_obs)`` gives the grip sites (n, 2, 3); ``relabel`` rewrites a batch's rows
-    as if the boxes had stood there: ``object_pos`` and ``object_rel_pos`` in both arms'
-    observations, the distance term (to the box, Eq. 17), rg1 for an arm that comes within
-    ``reach_threshold`` at this step, the coordination bonus and the end of the episode when
-    both do (Eq. 18). rg1 is paid at the step an arm comes within reach, where the environment
-    pays it the first time only: the two differ for an arm that leaves and comes back. The
-    guide term does not depend on the boxes. Whole rewards (n, 2) only.
-    """
-
-    def __init__(self, config: TaskConfig, joint_angles: bool):
-        if config.success_at != "reach":
-            raise ValueError("reach goals are relabelled for the reach task (success_at 'reach')")
-        if config.reach_funnel > 0 or config.goal != "subtask":
-            raise ValueError("reach relabelling needs the distance term's goal at the box itself "
-                             "(goal 'subtask', reach_funnel 0)")
-        self.config = config
-        self.layout = observation_layout(joint_angles)
-
-    def achieved(self, next_obs: np.ndarray) -> np.ndarray:
-        """Grip-site positions (n, 2, 3) m in observations (n, 2, O)."""
-        return next_obs[..., self.layout["grip_pos"]]
-
-    def _reach(self, obs: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(distance grip site to box (n, 2) m, within reach (n, 2)) for boxes at ``boxes``."""
-        off = boxes - obs[..., self.layout["grip_pos"]]
-        distance = np.sqrt((off * off).sum(-1))
-        return distance, distance < self.config.reach_threshold
-
-    def _pay(self, obs: np.ndarray, nxt: np.ndarray, boxes_before: np.ndarray,
-             boxes_after: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(distance + rg1 + rc per arm (n, 2), success (n,)) of a step for given boxes."""
-        c = self.config
-        _, before = self._reach(obs, boxes_before)
-        distance, after = self._reach(nxt, boxes_after)
-        success = after.all(axis=-1)
-        reward = -distance + c.reach_bonus * (after & ~before) + c.coordinate_bonus * success[:, None]
-        return reward, success
-
-    def relabel(self, batch: dict, rows: np.ndarray, goals: np.ndarray) -> None:
-        """Rewrite ``batch`` rows ``rows`` (obs, next_obs, rew, done) for boxes at ``goals``
-        (len(rows), 2, 3)."""
-        if batch["rew"].ndim != 2:
-            raise ValueError("reach relabelling rewrites whole rewards, not reward heads")
-        L = self.layout
-        obs, nxt = batch["obs"][rows], batch["next_obs"][rows]
-        old, _ = self._pay(obs, nxt, obs[..., L["object_pos"]], nxt[..., L["object_pos"]])
-        new, success = self._pay(obs, nxt, goals, goals)
-        for key, o in (("obs", obs), ("next_obs", nxt)):
-            batch[key][rows, :, L["object_pos"]] = goals
-            batch[key][rows, :, L["object_rel_pos"]] = goals - o[..., L["grip_pos"]]
-        batch["rew"][rows] += new - old
-        batch["done"][rows] = success & self.config.terminate_on_success
-
 
 @dataclass
 class StepResult:
@@ -629,7 +397,7 @@ class BaxterBatch:
         for arm in range(2):
             if starts[arm] == 0:
                 if self.approach_starts:
-                    above = box[arm] + APPROACH_HEIGHT * _UP
+                    above = box[arm] + APPROACH_HEIGHT * UP
                     if self.approach_spread > 0:       # drawn only then: same runs without it
                         above[:2] += disc_offset(rng, self.approach_spread)
                     grip[arm] = grip[arm] + rng.uniform() * (above - grip[arm])
@@ -660,7 +428,7 @@ class BaxterBatch:
         d.qpos[ix.box_pos] = box
         d.qvel[:] = 0.0
         held = starts == 2
-        touching = 0.5 * (2 * c.scene.box_half_size + 0.001 - _GAP_AT_ZERO)  # l = -r at contact
+        touching = 0.5 * (2 * c.scene.box_half_size + 0.001 - GAP_AT_ZERO)  # l = -r at contact
         d.qpos[ix.finger_qpos[held]] = np.array([-touching, touching])
         d.ctrl[ix.finger_ctrl[held]] = FINGER_CLOSED
         if self.cartesian:
@@ -840,7 +608,7 @@ class BaxterBatch:
             if c.reach_funnel > 0:      # during reach, aim above the box until over it
                 lift = np.minimum(c.reach_funnel * np.sqrt(rel[..., 0] ** 2 + rel[..., 1] ** 2),
                                   c.reach_funnel_height)
-                to_box = rel + np.where(subtask == 0, lift, 0.0)[..., None] * _UP
+                to_box = rel + np.where(subtask == 0, lift, 0.0)[..., None] * UP
             to_goal = np.where((subtask == 2)[..., None], to_target, to_box)
         else:
             to_goal = to_target

@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from dualarm.constraints.constraint_set import ConstraintSet
-from dualarm.envs.baxter import GraspRule, observation_layout
+from dualarm.envs.rules import GraspRule, observation_layout
 from dualarm.envs.config import TaskConfig
 from dualarm.errors import InputError
 

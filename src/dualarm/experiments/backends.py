@@ -133,9 +133,9 @@ def train_run(config: dict, run_dir: str | Path) -> RunOutcome:
     started = time.perf_counter()
     node = socket.gethostname()
     try:
-        config = TrainConfig.from_dict(config, where=f"run {name}")
+        config = TrainConfig.from_dict(config, where=f"run {name}", base=TrainConfig.paper())
         if paths.config.exists():     # never shorten a run that went further
-            episodes = max(config.episodes, TrainConfig.load(paths.config).episodes)
+            episodes = max(config.episodes, TrainConfig.load_saved(paths.config).episodes)
             trainer = Trainer.resume(run_dir, episodes=episodes, progress=False)
         else:
             trainer = Trainer.start(config, run_dir, progress=False)

@@ -213,7 +213,7 @@ def load_manifest(root: str | Path) -> Comparison | None:
         raise InputError(f"manifest version {data.get('version')} is not supported "
                          f"(this code reads {MANIFEST_VERSION})", source=str(path))
     try:
-        base = TrainConfig.from_dict(data["base"], where=f"{path}: base")
+        base = TrainConfig.from_dict(data["base"], where=f"{path}: base", base=TrainConfig.paper())
         comparison = Comparison(
             root=root, id=str(data["id"]),
             conditions=_conditions(data["conditions"], f"{path}: conditions"),
@@ -302,12 +302,13 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
         if runs.is_dir() and any(runs.iterdir()):
             raise InputError(f"{runs} holds runs but {root} has no {MANIFEST}: not a comparison "
                              "directory of this version; choose another -o")
-        base = request.base or TrainConfig.recipe()
+        base = request.base or TrainConfig()
         conditions, seeds = merged_grid(None, request)
         comparison = Comparison(
             root=root, id=secrets.token_hex(8), conditions=conditions, seeds=seeds,
             episodes=request.episodes or base.episodes,
-            base=TrainConfig.from_dict(base_dict(base), where=request.base_source),
+            base=TrainConfig.from_dict(base_dict(base), where=request.base_source,
+                                      base=TrainConfig.paper()),
             constraints_dir=given_dir)
     else:
         if request.base is not None:
@@ -368,7 +369,7 @@ def _check_run_dir(plan: RunPlan) -> None:
     path = RunPaths(plan.path).config
     if not path.exists():
         return
-    theirs_config = TrainConfig.load(path)
+    theirs_config = TrainConfig.load_saved(path)
     mine, theirs = plan.config.to_dict(), theirs_config.to_dict()
     for d in (mine, theirs):      # a run keeps its own copy of the constraints: compare contents
         d.pop("episodes"), d.pop("constraints")

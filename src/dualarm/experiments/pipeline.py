@@ -26,7 +26,7 @@ CONSTRAINT_SETS = (("single", "reach+grasp+align"), ("multi", "reach+grasp,align
 #: command): one seed per condition, under the recipe (the comparison's default base), for
 #: long enough that every condition learns. The recipe's runs first reached 0.85 evaluation
 #: success at 1,920-3,200 episodes in all 15 runs of its 3 x 5 comparison (seed 0: none 2,560,
-#: single 3,200, multi 2,880; docs/mirror-runs), so 6,000 leaves room for another machine's
+#: single 3,200, multi 2,880), so 6,000 leaves room for another machine's
 #: slower draw; the full reproduction is ``--episodes 10000 --seeds 0,1,2,3,4``.
 DEFAULT_SEEDS = (0,)
 DEFAULT_EPISODES = 6000

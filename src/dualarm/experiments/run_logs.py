@@ -148,7 +148,7 @@ def load_run(run_dir: str | Path, actors: str = "policy") -> Run:
         raise InputError(f"actors must be one of {', '.join(EVAL_SUCCESS_COLUMNS)}, got {actors!r}")
     column = EVAL_SUCCESS_COLUMNS[actors]
     paths = RunPaths(run_dir)
-    config = TrainConfig.load(paths.config)
+    config = TrainConfig.load_saved(paths.config)
     m, notes = _read_columns(paths.metrics, METRICS_READ)
     episode = m["episode"]
     wrong = np.flatnonzero(episode != np.arange(1, len(episode) + 1))

@@ -11,7 +11,7 @@ from dualarm.typed_fields import check_field_types
 #: The actors a deterministic policy can act with (``DADDPGConfig.eval_actor``).
 EVAL_ACTORS = ("online", "target", "average")
 
-#: Options removed from DADDPGConfig (issue 17, round 14; docs/training.md names the last commit
+#: Options removed from DADDPGConfig (issue 17; docs/training.md names the last commit
 #: that has each), with the one value a file may still give: old run directories keep loading.
 REMOVED_FIELDS = {"noise": "gaussian", "value_rescale": False, "advantage_learning": 0.0}
 
@@ -74,7 +74,7 @@ class DADDPGConfig:
     grip_hold_eps: float = 0.0
     """Probability per step and agent of starting to hold a random grip command for several
     steps (``rl.noise.HeldGrip``, epsilon-z-greedy on the grip; 0 = off): explores an open
-    hand through an approach that per-step noise cannot (docs/learning-runs.md, round 11)."""
+    hand through an approach that per-step noise cannot (docs/learning-runs.md)."""
     grip_hold_steps: int = 8
     """The longest hold of ``grip_hold_eps`` in steps; durations are uniform on 1..this."""
     action_l2: float = 0.1
@@ -84,7 +84,7 @@ class DADDPGConfig:
     """``action_l2`` leaves each agent's last action component (the grip command in both of
     the Baxter task's control modes) unpenalised. Penalised, the learned grip squeezes at a
     third of its range and the box slides down the fingers out of the grasp tolerance while
-    it is lifted (docs/learning-runs.md, round 6)."""
+    it is lifted (docs/learning-runs.md)."""
     obs_clip: float = 5.0
     """Normalised observations are clipped to +-obs_clip (Plappert: 5)."""
     grad_clip: float = 10.0
@@ -100,12 +100,12 @@ class DADDPGConfig:
     twin_min_weight: float = 1.0
     """beta in [0, 1]: with twin critics the target is beta min(Q'1, Q'2) + (1 - beta) of their
     mean (WD3, He and Hou 2020): less of the minimum's under-estimation, which compounds
-    over the steps between a success and the reset (docs/learning-runs.md, rounds 11, 15).
+    over the steps between a success and the reset (docs/learning-runs.md).
     1 = TD3's minimum."""
     critic_layer_norm: bool = False
     """Layer normalisation in every hidden layer of the critics (Ba et al. 2016): bounds the
     values a critic extrapolates to off the data, which an actor otherwise saturates towards
-    (Ball et al. 2023, RLPD). Off by default (docs/learning-runs.md, round 6)."""
+    (Ball et al. 2023, RLPD). Off by default (docs/learning-runs.md)."""
     demo_batch_size: int = 0
     """Transitions drawn from the demonstration buffer into every update, next to
     ``batch_size`` from replay (Nair et al. 2018; needs demonstrations, e.g. TrainConfig's
@@ -131,7 +131,7 @@ class DADDPGConfig:
     ``dualarm eval/play/export``; the curriculum's probes always act with the online actors,
     so this choice does not change training): "online", the actors the gradient trains, or
     "target", their Polyak averages (Eq. 15), which a run's last updates move less
-    (docs/learning-runs.md, round 12), or "average", the slower averages of
+    (docs/learning-runs.md), or "average", the slower averages of
     ``policy_average``. Exploring actions always come from the online actors."""
     policy_average: float = 0.0
     """Rate per update of a second, slower exponential average of the online actors, kept for
@@ -175,11 +175,15 @@ class DADDPGConfig:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict, where: str = "config") -> "DADDPGConfig":
-        """Build from a plain dict, naming unknown fields (``where`` prefixes the message)."""
+    def from_dict(cls, d: dict, where: str = "config", base: "DADDPGConfig | None" = None
+                  ) -> "DADDPGConfig":
+        """Build from a plain dict, naming unknown fields (``where`` prefixes the message);
+        the fields it leaves out take ``base``'s values (default: this class's defaults)."""
         if not isinstance(d, dict):
             raise InputError(f"{where}: expected a mapping of DADDPG settings, got {d!r}"[:160])
         d = _upgrade(d, where)
+        if base is not None:
+            d = {**base.to_dict(), **d}
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - known)
         if unknown:

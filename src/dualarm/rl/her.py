@@ -37,7 +37,7 @@ class HindsightSampler:
             (``n_step_returns``); the batch then carries ``discount`` (B,), gamma^m.
         gamma: the discount of those sums (needed with n > 1).
         recombine: joins the left half of some rows with the right half of others
-            (``TargetRelabeller.recombine``; None with ``recombine_share`` 0).
+            (``dualarm.training.relabel.TargetRelabeller.recombine``; None with ``recombine_share`` 0).
         recombine_share: fraction of each batch whose right arm's half comes from another
             row of the batch, after the hindsight goals (1-step rows only).
         goal_jitter: radius (in the goals' units, m for positions) of a ball around each

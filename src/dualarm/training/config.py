@@ -1,4 +1,10 @@
-"""Everything a training run is made of, in one typed value saved as ``config.yaml``."""
+"""Everything a training run is made of, in one typed value saved as ``config.yaml``.
+
+``TrainConfig()`` is **the recipe**: the settings under which DADDPG learns the whole task
+without demonstrations, in every condition (how each was found and what it measured:
+docs/learning-runs.md). ``TrainConfig.paper()`` is the paper's plain DDPG, the reproduction's
+baseline (``--config paper``), which does not learn the full task.
+"""
 
 from __future__ import annotations
 
@@ -12,19 +18,54 @@ from dualarm.rl.config import DADDPGConfig
 from dualarm.typed_fields import check_field_types
 from dualarm.yaml_io import read_yaml
 
-#: The recipe (``TrainConfig.recipe``): the settings under which DADDPG learns the whole
-#: task without demonstrations, and what `dualarm train` uses without --config.
-RECIPE_PATH = Path(__file__).resolve().parents[1] / "data" / "recipe.yaml"
-
 #: TaskConfig fields a run may override (the rest keep the task's defaults).
 TASK_OVERRIDES = ("control", "goal", "success_at", "max_episode_steps", "joint_angles_in_obs",
                   "reach_threshold", "terminate_on_success", "coordinate_bonus", "grasp_bonus",
                   "reach_bonus", "guide_c0", "reach_funnel", "reach_funnel_height")
 
+#: The recipe's learner: DADDPGConfig's own defaults are plain DDPG (the paper's), with these
+#: changes. Each value's reason is in docs/learning-runs.md.
+RECIPE_ALGO = DADDPGConfig(
+    hidden=(128, 128),         # 4x cheaper than 2 x 256 at no measured loss
+    updates_per_step=0.25,     # half of it learned later; double, no sooner
+    reward_scale=0.00025,      # 1 / rc: values in [0, 1], the shaping terms a tie-breaker
+    action_l2=0.02,            # within 5 cm of the box and while holding it (far_action_l2 beyond)
+    q_clip=1.0,                # targets within the reachable range (HER's clip_return)
+    random_eps=0.3,            # HER's share of uniformly random actions, farther than 5 cm
+    twin_critics=True,         # TD3's twin critics and target smoothing (Fujimoto et al. 2018)
+    target_noise=0.2,
+    twin_min_weight=0.5,       # WD3: the twin targets halfway from their minimum to their mean
+    policy_average=0.001,      # averaged actors: an exponential average over ~1,000 updates ...
+    eval_actor="average",      # ... which are the run's policy (training acts with the online ones)
+)
+
+
+def _recipe_task() -> dict:
+    return {"joint_angles_in_obs": True}     # every condition observes the joint angles
+
+
+def _task_defaults(names) -> dict:
+    """TaskConfig's own values of the fields ``names``: ``to_dict`` writes them for the keys
+    the recipe's task sets, so that a file's ``task`` merged onto the recipe's (``from_dict``)
+    gives back the same config."""
+    from dualarm.envs.config import TaskConfig
+
+    return {f.name: f.default for f in fields(TaskConfig) if f.name in names}
+
+
+def _is_task_default(name: str, value) -> bool:
+    default = _task_defaults((name,)).get(name, object())
+    if isinstance(value, list):
+        value = tuple(value)
+    return type(value) is type(default) and value == default    # 1 is not True: checked later
+
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """A training run of DADDPG on the Baxter task.
+    """A training run of DADDPG on the Baxter task. The defaults are the recipe (the
+    learner's in ``RECIPE_ALGO``); ``TrainConfig.paper()`` turns every option beyond the paper
+    off. Options below that the recipe leaves off were measured and not adopted
+    (docs/learning-runs.md, "Tried and not adopted").
 
     Attributes:
         condition: "none", "single" or "multi" (paper Section 3.2.2).
@@ -58,17 +99,17 @@ class TrainConfig:
         reach_action_l2: with ``start_curriculum``: the weight of the action penalty while
             the curriculum's frontier is the normal start (reach); ``algo.action_l2`` applies
             while it is later. The penalty that steadies the grasp and the carry also keeps
-            the arms still at home, where the value of moving is far off (docs/learning-runs.md,
-            round 7). None: ``algo.action_l2`` throughout.
+            the arms still at home, where the value of moving is far off
+            (docs/learning-runs.md). None: ``algo.action_l2`` throughout.
         far_action_l2: the weight of the action penalty for an arm whose grip site is more
             than ``near_box_radius`` from its box (the observation's box-minus-grip offset);
             ``algo.action_l2`` applies within it. The penalty steadies the grasp and the
             carry, near the box; far from it, it holds the arm still at home
-            (docs/learning-runs.md, rounds 7-8). None: ``algo.action_l2`` everywhere.
+            (docs/learning-runs.md). None: ``algo.action_l2`` everywhere.
         near_random_eps: ``algo.random_eps`` (the share of uniformly random exploring
             actions) for an arm whose grip site is within ``near_box_radius`` of its box;
             farther away ``algo.random_eps`` applies. Random steps of up to a full action
-            knock a closing grip off its box (docs/learning-runs.md, round 9). None:
+            knock a closing grip off its box (docs/learning-runs.md). None:
             ``algo.random_eps`` everywhere.
         calm_radius: metres; the radius within which ``near_random_eps`` applies, so that
             the last centimetres of the approach can keep exploring while the grasp is
@@ -80,19 +121,19 @@ class TrainConfig:
         approach_spread: metres; the approach starts' line ends at a point drawn uniformly
             within a horizontal disc of this radius around the point above the box (needs
             ``approach_starts``): the learner's reach from home fails by closing the hand 2-4
-            cm beside its box (docs/learning-runs.md, round 27), and the straight approach
+            cm beside its box (docs/learning-runs.md), and the straight approach
             starts never begin off the box's axis. 0: straight above the box.
         held_spread: metres; an arm that starts a training episode holding its box holds it
             at a point drawn uniformly within a ball of this radius around the one on the way
             from the box's start to its target (needs ``start_probs`` with a held share): the
-            learner's carry stops 3-5 cm from the target (round 27), and the held starts
+            learner's carry stops 3-5 cm from the target, and the held starts
             never begin off that line. 0: on the line.
         grasp_spread: metres; an arm that starts a training episode at its box begins with
             its open hand within an upper half-ball of this radius around the box's centre,
             drawn again while a finger pad would touch the box or the table (needs a grasp
             share in start_probs): the learner's slow seeds stall 2.5-5 cm beside and above
             their box on the way from home, where no training start puts the hand
-            (docs/learning-runs.md, round 28). 0: at the centre.
+            (docs/learning-runs.md). 0: at the centre.
         her_share: share of every replay batch whose goals are replaced by what the arms
             achieved later in the same episode, rewards recomputed (hindsight experience
             replay, Andrychowicz et al. 2017, "future" goals): the targets by where the
@@ -115,24 +156,24 @@ class TrainConfig:
             and Russell 1999). A potential-based term leaves the optimal policies of the
             paper's reward unchanged and the logged returns are the paper's; it gives the
             critic a gradient towards the box where the task's value is still out of sight
-            (the reach from home, docs/learning-runs.md, round 10). 0 turns it off.
+            (the reach from home, docs/learning-runs.md). 0 turns it off.
         carry_shaping: k, as ``approach_shaping``'s but with phi(s) = -k * (the distance from
             each arm's box to its target): the same gradient for the carry, where the paper's
-            distance term, scaled with rc to 1, is 4,000 times weaker (round 17). The box
+            distance term, scaled with rc to 1, is 4,000 times weaker. The box
             rests until grasped, so before the grasp the term is the constant -(1 - gamma) phi.
             Both potentials add. 0 turns it off.
         grasp_shaping: k, in the learner's reward units: the potential gains +k while an arm
             holds its box as the grasp sub-task counts it (``GraspRule``: between the closed
             fingers and lifted ``lift_height``), so that the grasp pays k when it is made and
             costs k when the box is dropped, where rg2 scaled with rc to 1 pays 0.005 (the
-            grasp is the longest phase of the curriculum, docs/learning-runs.md, round 25).
+            grasp is the longest phase of the curriculum, docs/learning-runs.md).
             Adds to the other potentials. 0 turns it off.
         early_close_shaping: k, in the learner's reward units: the potential loses k while an
             arm's fingers count as closed (the task's test) with its grip site farther than
             ``reach_threshold`` from its box, so closing the hand before the reach costs k at
             once and opening it again pays k back. The learner's reach from home fails by
             closing 2-4 cm from the box, a mistake whose cost otherwise shows only through
-            the grasp that then never comes (round 27). Adds to the other potentials. 0 turns
+            the grasp that then never comes. Adds to the other potentials. 0 turns
             it off.
         mirror_episodes: store every training episode twice, as it happened and as its mirror
             image (``dualarm.envs.mirror``: the scene reflected left to right, the arms
@@ -153,47 +194,50 @@ class TrainConfig:
 
     condition: str = "multi"
     constraints: str | None = None
-    task: dict = field(default_factory=dict)
-    episodes: int = 3000
+    task: dict = field(default_factory=_recipe_task)
+    episodes: int = 10000
     seed: int = 0
     num_envs: int = 16
-    eval_every: int = 100
+    eval_every: int = 160
     eval_episodes: int = 50
     checkpoint_every: int = 0
     checkpoint_minutes: float = 2.0
     torch_threads: int = 1
-    start_probs: tuple[float, float, float] = (1.0, 0.0, 0.0)
-    start_curriculum: float = 0.0
-    curriculum_probe: int = 0
+    start_probs: tuple[float, float, float] = (0.2, 0.2, 0.6)
+    start_curriculum: float = 0.5
+    curriculum_probe: int = 32
     reach_action_l2: float | None = None
-    far_action_l2: float | None = None
-    near_random_eps: float | None = None
+    far_action_l2: float | None = 0.002
+    near_random_eps: float | None = 0.0
     calm_radius: float | None = None
     near_box_radius: float = 0.05
-    approach_starts: bool = False
+    approach_starts: bool = True
     approach_spread: float = 0.0
     held_spread: float = 0.0
     grasp_spread: float = 0.0
     reward_heads: bool = False
-    her_share: float = 0.0
+    her_share: float = 0.8
     her_goal_jitter: float = 0.0
-    recombine_share: float = 0.0
-    approach_shaping: float = 0.0
-    carry_shaping: float = 0.0
+    recombine_share: float = 1.0
+    approach_shaping: float = 1.0
+    carry_shaping: float = 1.0
     grasp_shaping: float = 0.0
     early_close_shaping: float = 0.0
-    mirror_episodes: bool = False
+    mirror_episodes: bool = True
     demo_episodes: int = 0
-    algo: DADDPGConfig = field(default_factory=DADDPGConfig)
+    algo: DADDPGConfig = RECIPE_ALGO
 
     def __post_init__(self):
         check_field_types(self)
         from dualarm.task import CONDITIONS
         if self.condition not in CONDITIONS:
             raise InputError(f"condition must be one of {CONDITIONS}, got {self.condition!r}")
-        unknown = sorted(set(self.task) - set(TASK_OVERRIDES))
+        unknown = sorted(set(self.task) - set(TASK_OVERRIDES), key=str)
         if unknown:
             raise InputError(f"task overrides {unknown} are not supported; allowed: {TASK_OVERRIDES}")
+        # an override that gives the task's own default is no override: one config, one value
+        object.__setattr__(self, "task", {k: v for k, v in self.task.items()
+                                          if not _is_task_default(k, v)})
         for name in ("episodes", "num_envs", "torch_threads"):
             if getattr(self, name) < 1:
                 raise InputError(f"{name} must be at least 1, got {getattr(self, name)}")
@@ -328,20 +372,28 @@ class TrainConfig:
         d = asdict(self)
         d["algo"] = self.algo.to_dict()
         d["start_probs"] = [float(p) for p in self.start_probs]
-        d["task"] = {k: list(v) if isinstance(v, tuple) else v for k, v in self.task.items()}
+        task = {**_task_defaults(_recipe_task()), **self.task}    # every key the recipe sets
+        d["task"] = {k: list(v) if isinstance(v, tuple) else v for k, v in task.items()}
         return d
 
     @classmethod
-    def from_dict(cls, d: dict, where: str = "config") -> "TrainConfig":
+    def from_dict(cls, d: dict, where: str = "config", base: "TrainConfig | None" = None
+                  ) -> "TrainConfig":
+        """The config of a mapping of fields on top of ``base`` (default: the recipe): a field
+        it gives replaces the base's, but ``algo`` and ``task`` are merged key by key, so a
+        file says only what it changes. A run's own ``config.yaml`` is read on the paper's
+        base instead (``load_saved``)."""
+        base = cls() if base is None else base
         known = {f.name for f in fields(cls)}
         if not isinstance(d, dict):
             raise InputError(f"{where}: expected a mapping of training settings")
-        unknown = sorted(set(d) - known)
+        unknown = sorted(set(d) - known, key=str)
         if unknown:
             raise InputError(f"{where}: unknown field(s) {unknown}; known: {sorted(known)}")
-        d = dict(d)
-        if "algo" in d:
-            d["algo"] = DADDPGConfig.from_dict(d["algo"] or {}, where=f"{where}: algo")
+        d = {**base.to_dict(), **d}
+        if isinstance(d["task"], dict) and base.task:
+            d["task"] = {**base.to_dict()["task"], **d["task"]}
+        d["algo"] = DADDPGConfig.from_dict(d["algo"] or {}, where=f"{where}: algo", base=base.algo)
         try:
             return cls(**d)
         except InputError as exc:
@@ -355,33 +407,72 @@ class TrainConfig:
 
     @classmethod
     def recipe(cls) -> "TrainConfig":
-        """The recipe: the shipped settings (``RECIPE_PATH``, docs/learning-runs.md) under
-        which the paper's learner learns reach-grasp-align from the normal reset, the same
-        for every condition (change ``condition``, ``seed`` and ``episodes`` with ``with_``).
-        The dataclass's own defaults are the paper's plain DDPG, which does not learn it."""
-        return cls.load(RECIPE_PATH)
+        """The recipe, ``TrainConfig()``: the settings under which the paper's learner learns
+        reach-grasp-align from the normal reset, the same for every condition (change
+        ``condition``, ``seed`` and ``episodes`` with ``with_``)."""
+        return cls()
+
+    @classmethod
+    def paper(cls) -> "TrainConfig":
+        """The paper's plain DDPG (Section 2.3): one critic per agent, every episode from the
+        normal reset, the paper's reward alone, 3,000 episodes; the joint angles observed in
+        the guided conditions only. The reproduction's baseline; it does not learn the full
+        task (docs/learning-runs.md)."""
+        return cls(episodes=3000, eval_every=100, task={}, start_probs=(1.0, 0.0, 0.0),
+                   start_curriculum=0.0, curriculum_probe=0, far_action_l2=None,
+                   near_random_eps=None, approach_starts=False, her_share=0.0,
+                   recombine_share=0.0, approach_shaping=0.0, carry_shaping=0.0,
+                   mirror_episodes=False, algo=DADDPGConfig())
+
+    @classmethod
+    def preset(cls, name: str) -> "TrainConfig":
+        """A named preset: ``recipe`` or ``paper`` (``PRESETS``)."""
+        if name not in PRESETS:
+            raise InputError(f"no preset {name!r}; the presets are {PRESETS}")
+        return cls.paper() if name == "paper" else cls.recipe()
 
     @classmethod
     def load(cls, path: str | Path) -> "TrainConfig":
-        """The config of a YAML file of fields; ``extends: BASE`` in it starts from another
-        file's fields (see :func:`read_config_layers`)."""
-        return cls.from_dict(read_config_layers(Path(path)), where=str(path))
+        """The config of a YAML file of fields, on top of the recipe; ``extends: BASE`` in it
+        starts from another file's fields or a preset's (see :func:`read_config_layers`).
+        ``path`` may also be a preset's name (``recipe``, ``paper``)."""
+        if str(path) in PRESETS and not Path(path).exists():
+            return cls.preset(str(path))
+        d, base = read_config_layers(Path(path))
+        return cls.from_dict(d, where=str(path), base=cls.preset(base))
+
+    @classmethod
+    def load_saved(cls, path: str | Path) -> "TrainConfig":
+        """The config a run or a comparison wrote (``config.yaml``): every field is in it;
+        a field added since it was written takes the paper's value, which is what the run
+        used (every option was added off), so runs made before the recipe became the
+        default resume as they began."""
+        path = Path(path)
+        d = read_yaml(path, "training config")
+        if isinstance(d, dict) and isinstance(d.get("constraints"), str) \
+                and not Path(d["constraints"]).is_absolute():
+            d = {**d, "constraints": str(path.parent / d["constraints"])}
+        return cls.from_dict(d, where=str(path), base=cls.paper())
 
 
-#: The value of ``extends`` that names the shipped recipe (``RECIPE_PATH``).
-RECIPE_NAME = "recipe"
+#: The named presets, for ``--config NAME`` and ``extends: NAME``.
+PRESETS = ("recipe", "paper")
 
 #: Fields whose mappings a file merges key by key into its base's (the rest it replaces).
 MERGED_FIELDS = ("algo", "task")
 
 
-def read_config_layers(path: Path, seen: tuple[Path, ...] = ()) -> dict:
+def read_config_layers(path: Path, seen: tuple[Path, ...] = ()) -> tuple[dict, str]:
     """The fields of the training-config file ``path``, on top of those of the file its
-    ``extends`` names (a path relative to ``path``'s folder, or ``recipe`` for the shipped
-    recipe), and so on down: a variant file says only what it changes. ``algo`` and ``task``
-    are merged key by key; any other field replaces the base's. A relative ``constraints``
-    path is resolved against the folder of the file that gives it, so a run directory's
-    copy and a base in another folder both keep pointing at the same file.
+    ``extends`` names (a path relative to ``path``'s folder), and so on down, and the preset
+    at the bottom (``recipe`` unless the last ``extends`` names ``paper``): a variant file says
+    only what it changes. ``algo`` and ``task`` are merged key by key; any other field
+    replaces the base's. A relative ``constraints`` path is resolved against the folder of
+    the file that gives it, so a run directory's copy and a base in another folder both keep
+    pointing at the same file.
+
+    Returns:
+        (the merged fields, the name of the preset they lie on).
 
     Raises:
         InputError: naming the file: unreadable or not a mapping, an unknown field (named by
@@ -398,23 +489,25 @@ def read_config_layers(path: Path, seen: tuple[Path, ...] = ()) -> dict:
             and not Path(d["constraints"]).is_absolute():
         d["constraints"] = str(path.parent / d["constraints"])
     if "extends" not in d:
-        return d
+        return d, "recipe"
     name = d.pop("extends")
     if not isinstance(name, str) or not name.strip():
         raise InputError(f"{where}: field 'extends' must name a config file (a path relative "
-                         f"to this file's folder) or {RECIPE_NAME!r}; got {name!r}")
-    base_path = RECIPE_PATH if name == RECIPE_NAME else path.parent / name
+                         f"to this file's folder) or a preset {PRESETS}; got {name!r}")
+    if name in PRESETS:
+        return d, name
+    base_path = path.parent / name
     chain = (*seen, path.resolve())          # this file and the ones that extend it
     if base_path.resolve() in chain:
         looped = " -> ".join(str(p) for p in (*chain, base_path.resolve()))
         raise InputError(f"{where}: field 'extends' loops back: {looped}")
     if not base_path.is_file():
         raise InputError(f"{where}: field 'extends': no config file {str(base_path)!r}")
-    base = read_config_layers(base_path, chain)
+    base, preset = read_config_layers(base_path, chain)
     for name_ in MERGED_FIELDS:
         if isinstance(base.get(name_), dict) and isinstance(d.get(name_), dict):
             d[name_] = {**base[name_], **d[name_]}
-    return {**base, **d}
+    return {**base, **d}, preset
 
 
 def _check_layer_fields(d: dict, where: str) -> None:

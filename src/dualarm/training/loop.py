@@ -22,8 +22,8 @@ import numpy as np
 import torch
 
 from dualarm.atomic import atomic_copy
-from dualarm.envs.baxter import (HEAD_TERMS, GraspRule, ReachRelabeller, TargetRelabeller,
-                                 closed_gap, finger_gap, observation_layout)
+from dualarm.envs.rules import HEAD_TERMS, GraspRule, closed_gap, finger_gap, observation_layout
+from dualarm.training.relabel import ReachRelabeller, TargetRelabeller
 from dualarm.envs.mirror import TaskMirror
 from dualarm.errors import DualarmError, InputError
 from dualarm.locks import DirectoryLock
@@ -83,7 +83,6 @@ def make_vector_env(config: TrainConfig, num_envs: int,
 def box_offset_columns(task) -> slice:
     """The columns (3,) of each arm's box-minus-grip offset in the observations of ``task``
     (a ``TaskConfig``)."""
-    from dualarm.envs.baxter import observation_layout
 
     return observation_layout(task.observes_joint_angles)["object_rel_pos"]
 
@@ -153,7 +152,8 @@ class Trainer:
         if make_env is not None and baxter_only:
             raise InputError(f"{', '.join(baxter_only)}: defined for the Baxter task only "
                              "(its expert, start states, targets and named reward terms), "
-                             "not a custom environment")
+                             "not a custom environment: start from TrainConfig.paper(), whose "
+                             "options are all general")
         constraints = None if make_env is not None else config.load_constraints()
         self.vec = make_vector_env(config, config.num_envs, make_env, constraints, training=True)
         self.eval_vec = (make_vector_env(config, min(config.num_envs, config.eval_episodes),
@@ -292,7 +292,7 @@ class Trainer:
             raise InputError(f"{paths.root}: no run to resume (no config.yaml there)")
         lock = DirectoryLock(paths.root, "dualarm train")
         try:
-            config = TrainConfig.load(paths.config)
+            config = TrainConfig.load_saved(paths.config)
             if episodes is not None:
                 config = config.with_(episodes=episodes)
             trainer = cls(config, paths, make_env, progress)
@@ -647,7 +647,7 @@ class Trainer:
         mine = self.stored_config().with_(episodes=1).to_dict()
         theirs = payload.get("config", {})
         try:   # settings added since the checkpoint was written take their defaults
-            theirs = TrainConfig.from_dict(theirs).to_dict()
+            theirs = TrainConfig.from_dict(theirs, base=TrainConfig.paper()).to_dict()
         except (InputError, TypeError):
             pass
         changed = sorted(k for k in mine if mine.get(k) != theirs.get(k))

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dualarm.envs.baxter import closed_gap, finger_gap, observation_layout
+from dualarm.envs.rules import closed_gap, finger_gap, observation_layout
 from dualarm.envs.config import TaskConfig
 from dualarm.task import ARMS
 from dualarm.training.evaluation import evaluate

@@ -75,7 +75,7 @@ def load_actors(run_dir: str | Path, which: str = "best",
         raise InputError(f"actors must be one of {', '.join(EVAL_ACTORS)}, got {actors!r}")
     if actors is not None:
         paths = RunPaths(run_dir)
-        own = TrainConfig.load(paths.config).algo.eval_actor if paths.config.exists() else None
+        own = TrainConfig.load_saved(paths.config).algo.eval_actor if paths.config.exists() else None
         if actors != own:
             config, agent, info = load_learner(run_dir)
             if actors == "average" and agent.actor_average is None:
@@ -102,7 +102,7 @@ def _load(run_dir: str | Path, which: str, whole: bool) -> tuple[TrainConfig, DA
     paths = RunPaths(run_dir)
     if not paths.config.exists():
         raise InputError(f"{paths.root}: not a run directory (no config.yaml)")
-    config = TrainConfig.load(paths.config)
+    config = TrainConfig.load_saved(paths.config)
     path = paths.best if which == "best" and paths.best.exists() else paths.latest
     payload = load_checkpoint(path)
     if whole and "learner" not in payload:
