@@ -38,9 +38,7 @@ def matmul_gflops(m: int, k: int, n: int, seconds: float) -> float:
 
 def time_updates(config: DADDPGConfig, obs: int, seconds: float) -> tuple[float, float]:
     """Median seconds per dual-agent update, and its matmul FLOPs (demonstration rows, if
-    any, are drawn from the same random transitions and counted in the batch). With
-    ``policy_delay`` d each timed sample is d consecutive updates (one with the actor pass),
-    divided by d, so that the median is of the average update."""
+    any, are drawn from the same random transitions and counted in the batch)."""
     agent = DADDPG(config, (obs, obs), (4, 4))
     rng = np.random.default_rng(0)
     buf = ReplayBuffer(20_000, 2, obs, 4)
@@ -51,13 +49,11 @@ def time_updates(config: DADDPGConfig, obs: int, seconds: float) -> tuple[float,
     rows = config.batch_size + config.demo_batch_size
     for _ in range(5):
         agent.update(buf.sample(rng, rows), config.demo_batch_size)
-    d = config.policy_delay
     times, end = [], time.perf_counter() + seconds
     while time.perf_counter() < end or len(times) < 5:
         t = time.perf_counter()
-        for _ in range(d):
-            agent.update(buf.sample(rng, rows), config.demo_batch_size)
-        times.append((time.perf_counter() - t) / d)
+        agent.update(buf.sample(rng, rows), config.demo_batch_size)
+        times.append(time.perf_counter() - t)
     return float(np.median(times)), agent.update_flops(rows)
 
 
@@ -74,9 +70,8 @@ def main() -> None:
     cases = [((256, 256, 256), 256, {}), ((256, 256), 256, {}), ((128, 128, 128), 256, {}),
              ((128, 128), 256, {}), ((256, 256, 256), 128, {}),
              ((256, 256), 256, {"twin_critics": True}), ((128, 128), 256, {"twin_critics": True}),
-             ((128, 128), 256, {"twin_critics": True, "policy_delay": 2}),
              ((256, 256), 256, demos)]
-    print(f"{'hidden':>16} {'batch':>5} {'twin':>4} {'demo':>4} {'delay':>5} {'GFLOP/upd':>9} "
+    print(f"{'hidden':>16} {'batch':>5} {'twin':>4} {'demo':>4} {'GFLOP/upd':>9} "
           f"{'ms/upd':>7} {'upd/s':>6} {'GFLOP/s':>7} {'roofline':>8} {'ratio':>5}")
     for hidden, batch, options in cases:
         config = DADDPGConfig(hidden=hidden, batch_size=batch, buffer_size=20_000, **options)
@@ -87,7 +82,7 @@ def main() -> None:
         rate = flops / dt / 1e9
         print(f"{'x'.join(map(str, hidden)):>16} {batch:>5} "
               + " ".join(f"{'yes' if f else 'no':>4}" for f in flags)
-              + f" {config.policy_delay:>5} {flops / 1e9:>9.3f} {dt * 1e3:>7.2f} {1 / dt:>6.1f} {rate:>7.1f} {peak:>8.1f} "
+              + f" {flops / 1e9:>9.3f} {dt * 1e3:>7.2f} {1 / dt:>6.1f} {rate:>7.1f} {peak:>8.1f} "
               f"{rate / peak:>5.2f}")
     big = matmul_gflops(1024, 1024, 1024, min(2.0, args.seconds))
     print(f"large matmul (1024^3) peak: {big:.1f} GFLOP/s")

@@ -292,6 +292,30 @@ def test_a_run_config_written_before_the_recipe_was_the_default_reads_as_it_ran(
     assert not saved.task_config().observes_joint_angles
 
 
+def test_removed_options_load_at_their_off_value_and_are_refused_at_any_other(tmp_path):
+    """Options measured and not adopted left the code; a run directory that lists them at
+    their off value (every run made before) still loads, a file that turns one on is refused
+    with one line naming it."""
+    from dualarm.errors import InputError
+    from dualarm.training.config import REMOVED_FIELDS, TrainConfig
+    from dualarm.rl.config import REMOVED_FIELDS as ALGO_REMOVED
+
+    old = TrainConfig.paper().to_dict()
+    old.update({name: value for name, value in REMOVED_FIELDS.items()})
+    old["algo"].update({"grip_hold_eps": 0.0, "grip_hold_steps": 8, "free_grip": False,
+                        "critic_layer_norm": False, "random_grip": True, "policy_delay": 1})
+    assert set(old["algo"]) - set(TrainConfig.paper().algo.to_dict()) <= set(ALGO_REMOVED)
+    path = tmp_path / "config.yaml"
+    path.write_text(yaml.safe_dump(old))
+    assert TrainConfig.load_saved(path) == TrainConfig.paper()
+    for text, field in (("grasp_spread: 0.03\n", "grasp_spread"),
+                        ("algo: {policy_delay: 2}\n", "policy_delay"),
+                        ("reach_action_l2: 0.01\n", "reach_action_l2")):
+        path.write_text(text)
+        with pytest.raises(InputError, match=f"{field}: .* is no longer an option"):
+            TrainConfig.load(path)
+
+
 def test_extends_chains_and_resolves_constraints_against_the_file_that_names_them(tmp_path):
     from dualarm.constraints.constraint_set import default_constraints_path
     from dualarm.training.config import TrainConfig

@@ -34,7 +34,7 @@ def generated():
 # --------------------------------------------------------------------------- the shipped set
 
 def test_shipped_set_layout():
-    assert SHIPPED == [f"demo_{k:02d}.csv.gz" for k in range(10)] + ["labels.csv"]
+    assert SHIPPED == [f"demo_{k:02d}.csv.gz" for k in range(10)] + ["labels.csv", "scene.csv"]
     total = sum((DEFAULT_DEMO_DIR / name).stat().st_size for name in SHIPPED)
     assert total < 1_000_000                                      # small: compressed, six decimals
     header = gzip.open(DEFAULT_DEMO_DIR / "demo_00.csv.gz", "rt").readline().strip().split(",")
@@ -190,3 +190,60 @@ def test_imu_recordings_give_the_constraints_of_the_generating_trajectories(gene
     assert worst < 0.01
     # The bounds are not trivially equal: the recordings carry noise and unknown mountings.
     assert worst > 1e-4
+
+
+# --------------------------------------------------------------------------- the scene file
+
+def test_the_shipped_scene_is_where_the_generator_placed_the_boxes_and_targets(generated):
+    """scene.csv holds each demonstration's resting box centres and targets (0.1 mm), as the
+    environment placed them at the demonstration's reset seed; a folder's scene file is not
+    taken for a recording."""
+    from dualarm.demos.formats import demo_files
+    from dualarm.demos.scene import demo_scenes
+    from dualarm.envs.config import TaskConfig
+
+    task = TaskConfig()
+    scenes = demo_scenes(DEFAULT_DEMO_DIR, [d.name for d in generated], task.workspace())
+    for d in generated:
+        np.testing.assert_allclose(scenes[d.name].boxes, d.scene.boxes, atol=5e-5)
+        np.testing.assert_allclose(scenes[d.name].targets, d.scene.targets, atol=5e-5)
+        rest = task.scene.table_height + task.scene.box_half_size
+        np.testing.assert_allclose(d.scene.boxes[:, 2], rest, atol=2e-3)   # resting on the table
+        assert d.scene.boxes[0, 1] > 0 > d.scene.boxes[1, 1]              # left box on the left
+    assert "scene" not in demo_files(DEFAULT_DEMO_DIR)
+
+
+@pytest.mark.parametrize("edit,column,phrase", [
+    (lambda rows: rows[1].__setitem__(2, "1.5"), "left_box_y", "outside the workspace"),
+    (lambda rows: rows[1].__setitem__(3, "0.95"), "left_box_z", "rests on the table"),
+    (lambda rows: rows[1].__setitem__(9, "0.5"), "left_target_z", "between the table top"),
+    (lambda rows: rows[1].__setitem__(4, "nan"), "right_box_x", "finite number"),
+    (lambda rows: rows[1].__setitem__(4, "abc"), "right_box_x", "finite number"),
+    (lambda rows: [r.pop(5) for r in rows], "right_box_y", "missing column"),
+    (lambda rows: rows[2].__setitem__(0, "demo_00"), "demo", "given twice"),
+])
+def test_a_bad_scene_gets_one_error_naming_the_file_row_and_column(tmp_path, edit, column, phrase):
+    from dualarm.demos.scene import read_scenes
+    from dualarm.envs.config import TaskConfig
+
+    rows = [line.split(",") for line in (DEFAULT_DEMO_DIR / "scene.csv").read_text().splitlines()]
+    edit(rows)
+    path = tmp_path / "scene.csv"
+    path.write_text("\n".join(",".join(r) for r in rows) + "\n")
+    with pytest.raises(InputError, match=phrase) as err:
+        read_scenes(path, TaskConfig().workspace())
+    assert err.value.column == column and str(path) in str(err.value)
+
+
+def test_a_folder_without_its_scene_or_a_row_for_a_demonstration_is_named(tmp_path):
+    from dualarm.demos.scene import demo_scenes
+    from dualarm.envs.config import TaskConfig
+
+    workspace = TaskConfig().workspace()
+    with pytest.raises(InputError, match="scene file not found"):
+        demo_scenes(tmp_path, ["demo_00"], workspace)
+    lines = (DEFAULT_DEMO_DIR / "scene.csv").read_text().splitlines()
+    (tmp_path / "scene.csv").write_text("\n".join(lines[:3]) + "\n")      # demo_00 and demo_01
+    with pytest.raises(InputError, match="no scene row for demonstration.s. demo_02"):
+        demo_scenes(tmp_path, ["demo_00", "demo_02"], workspace)
+    assert set(demo_scenes(tmp_path, ["demo_01"], workspace)) == {"demo_01"}

@@ -204,41 +204,6 @@ def test_n_step_returns_relabel_every_step_for_the_rows_hindsight_goal():
     assert stopped_early > 0
 
 
-def test_goal_jitter_moves_each_hindsight_goal_within_its_ball():
-    """With goal_jitter r every relabelled goal lies within r of a box position of its own
-    episode's future, filling the ball (mean distance 3r/4 for a uniform 3-D ball), and the
-    sampler's other draws are unchanged."""
-    from dualarm.sampling import ball_offsets
-
-    task = TaskConfig()
-    buffer = ReplayBuffer(1000, 2, 29, 4, 3)
-    for seed in (1, 2):
-        o, a, r, h, o2, term, env = expert_episode(seed, task)
-        buffer.add_episode(o, a, h, o2, term)
-    seen = []
-
-    def relabel(batch, rows, goals):
-        seen.append((batch["obs"][rows].copy(), goals))
-
-    radius = 0.03
-    jittered = HindsightSampler(buffer, lambda nxt: nxt[..., 3:6], relabel, share=1.0, goal_jitter=radius)
-    jittered.sample(np.random.default_rng(0), 256)
-    nxt = buffer.data["next_obs"][:len(buffer), :, 3:6]
-    distances = []
-    for goal in seen[0][1]:                              # (2, 3) per row
-        nearest = np.linalg.norm(nxt - goal, axis=-1).min(axis=0)     # per agent
-        distances.extend(nearest)
-    distances = np.array(distances)
-    assert distances.max() <= radius + 1e-6
-    assert distances.mean() > 0.3 * radius              # moved, not the achieved goals
-    offsets = ball_offsets(np.random.default_rng(1), (20000, 3), radius)
-    norms = np.linalg.norm(offsets, axis=-1)
-    assert norms.max() <= radius and abs(norms.mean() - 0.75 * radius) < 0.01 * radius
-    assert abs(offsets.mean(axis=0)).max() < 0.02 * radius
-    with pytest.raises(ValueError, match="goal_jitter"):
-        HindsightSampler(buffer, lambda nxt: nxt[..., 3:6], relabel, share=1.0, goal_jitter=-1.0)
-
-
 def test_recombined_rows_join_two_steps_and_pay_the_coordination_bonus_only_when_both_align():
     """recombine gives a row the right arm's half of another: the halves are copied whole,
     each arm keeps the reward the environment paid its own half less the coordination bonus

@@ -7,7 +7,7 @@ import torch
 from dualarm.rl import DADDPG, DADDPGConfig
 from dualarm.rl.daddpg import NonFiniteLoss
 from dualarm.rl.networks import StackedMLP
-from dualarm.rl.noise import GaussianNoise, HeldGrip
+from dualarm.rl.noise import GaussianNoise
 from dualarm.rl.normalizer import RunningNormalizer
 from dualarm.rl.replay import ReplayBuffer
 
@@ -67,7 +67,7 @@ def test_stacked_mlp_is_one_mlp_per_agent():
 
 
 def test_the_first_stacks_alone_give_the_same_outputs_and_only_their_gradients():
-    net = StackedMLP(4, 4, 2, (8, 8), generator=torch.Generator().manual_seed(0), layer_norm=True)
+    net = StackedMLP(4, 4, 2, (8, 8), generator=torch.Generator().manual_seed(0))
     x = torch.randn(4, 6, 4)
     torch.testing.assert_close(net(x[:2], stacks=2), net(x)[:2])
     net(x[:2], stacks=2).sum().backward()
@@ -202,20 +202,6 @@ def test_actor_gradient_ascends_the_critic():
     assert (q_of_policy() > before).all()
 
 
-def test_free_grip_leaves_each_agents_last_action_out_of_the_penalty():
-    a = torch.rand(2, 8, 3) * 2 - 1
-    a[0, :, 2] = 0.0                                   # agent 0 has 2 actions: its grip is a[0, :, 1]
-    moved = a.clone()
-    moved[0, :, 1] = -moved[0, :, 1] * 0.5 + 0.3       # change both agents' grips
-    moved[1, :, 2] = 0.9
-    free, penalised = small_agent(action_l2=2.0, free_grip=True), small_agent(action_l2=2.0)
-    torch.testing.assert_close(free.action_penalty(moved), free.action_penalty(a))
-    assert (penalised.action_penalty(moved) != penalised.action_penalty(a)).all()
-    motion = a.clone()
-    motion[:, :, 0] = 0.7                              # the motion stays penalised
-    assert (free.action_penalty(motion) != free.action_penalty(a)).all()
-
-
 def test_a_penalty_weight_per_sample_replaces_action_l2():
     """Equal weights give the scalar penalty; a weight of 0 on agent 0's rows leaves agent
     0's actor to the critic alone, while agent 1's update is unchanged."""
@@ -243,22 +229,6 @@ def test_a_shaping_term_is_a_reward_in_the_learners_units():
     assert plain.update(batch)["critic_loss"] != pytest.approx(out["critic_loss"], rel=1e-3)
     for p_shaped, p_moved in zip(shaped.critic.parameters(), moved.critic.parameters()):
         torch.testing.assert_close(p_shaped, p_moved)
-
-
-def test_layer_norm_critics_ignore_the_scale_of_their_hidden_pre_activations():
-    net = StackedMLP(2, 4, 1, (8, 8), generator=torch.Generator().manual_seed(0), layer_norm=True)
-    plain = StackedMLP(2, 4, 1, (8, 8), generator=torch.Generator().manual_seed(0))
-    x = torch.randn(2, 10, 4)
-    y, y_plain = net(x), plain(x)
-    with torch.no_grad():                              # scale the first layer's output by 10
-        for model in (net, plain):
-            model.hidden[0].weight.mul_(10.0)
-            model.hidden[0].bias.mul_(10.0)
-    # Invariant up to layer_norm's eps (1e-5 on the variance): tolerances well above
-    # float rounding on any BLAS, far below the plain network's change.
-    torch.testing.assert_close(net(x), y, rtol=1e-4, atol=1e-4)
-    assert not torch.allclose(plain(x), y_plain, rtol=1e-2, atol=1e-2)
-    assert DADDPG(DADDPGConfig(hidden=(16,), critic_layer_norm=True), OBS, ACT).critic.norms is not None
 
 
 def test_actions_masked_and_bounded():
@@ -368,8 +338,6 @@ def test_update_flops_counts_the_matmuls():
     assert agent.update_flops(10) == 10 * (4 * fa + 6 * fc)
     twins = small_agent(twin_critics=True)                 # the actor pass runs the first twins only
     assert twins.update_flops(10) == 10 * (4 * fa + 4 * 2 * fc + 2 * fc)
-    delayed = small_agent(policy_delay=2)                 # one actor pass per two updates
-    assert delayed.update_flops(10) == 10 * (fa + 4 * fc + (3 * fa + 2 * fc) / 2)
 
 
 def test_normalizer_matches_numpy_and_clips():
@@ -499,18 +467,6 @@ def test_reward_heads_follow_equation_13_per_head_and_the_actor_sees_their_sum()
         DADDPG(config, OBS, ACT, seed=0).load_state_dict(agent.state_dict())
 
 
-def test_random_actions_can_leave_the_grip_to_the_policy():
-    obs = np.random.default_rng(0).normal(size=(64, 2, 7))
-    kept, plain = small_agent(random_eps=1.0, random_grip=False, noise_std=0.0), small_agent(random_eps=1.0)
-    deterministic = kept.act(obs)
-    a = kept.act(obs, np.random.default_rng(1), explore=True)
-    b = plain.act(obs, np.random.default_rng(1), explore=True)
-    np.testing.assert_allclose(a[:, 0, 1], deterministic[:, 0, 1])      # agent 0's grip: its 2nd of 2
-    np.testing.assert_allclose(a[:, 1, 2], deterministic[:, 1, 2])      # agent 1's grip: its 3rd of 3
-    np.testing.assert_array_equal(a[:, :, 0], b[:, :, 0])               # the motion is random as before
-    assert not np.allclose(b[:, 1, 2], deterministic[:, 1, 2])
-
-
 def test_the_share_of_random_actions_can_differ_per_environment_and_agent():
     """random_eps (N, A): 0 keeps the noisy policy's action, 1 draws a random one; the
     random stream is the same as with the config's share (runs without it are unchanged)."""
@@ -526,76 +482,3 @@ def test_the_share_of_random_actions_can_differ_per_environment_and_agent():
     same = agent.act(obs, np.random.default_rng(1), explore=True, random_eps=np.full((64, 2), 0.5))
     np.testing.assert_array_equal(same, agent.act(obs, np.random.default_rng(1), explore=True))
 
-
-def test_a_held_grip_keeps_one_random_command_for_its_whole_duration():
-    """HeldGrip: a hold replaces only the grip column with one value in [-1, 1] for n steps,
-    n uniform on 1..max_steps (every length seen, none longer); reset drops the holds."""
-    rng = np.random.default_rng(0)
-    hold = HeldGrip(eps=1.0, max_steps=4)
-    grips = np.zeros((2, 3), dtype=bool)
-    grips[0, 1] = grips[1, 2] = True
-    policy = np.full((500, 2, 3), 0.5)
-    first = hold.apply(rng, policy, grips)
-    np.testing.assert_array_equal(first[~np.broadcast_to(grips, first.shape)], 0.5)
-    assert np.all(np.abs(first[:, 0, 1]) <= 1) and len(np.unique(first[:, 0, 1])) == 500
-    lengths, value = np.ones(500, dtype=int), first[:, 0, 1]
-    running = np.ones(500, dtype=bool)
-    for _ in range(6):                       # no new holds: each runs out after its n steps
-        out = hold.apply(rng, policy, grips, eps=np.zeros((500, 2)))
-        still = running & (out[:, 0, 1] == value)
-        lengths += still
-        running = still
-    assert set(lengths) == {1, 2, 3, 4}
-    assert np.all(out[:, 0, 1] == 0.5)
-    hold.apply(rng, policy, grips)
-    hold.reset(np.arange(500) < 250)
-    after = hold.apply(rng, policy, grips, eps=np.zeros((500, 2)))
-    np.testing.assert_array_equal(after[:250], policy[:250])
-
-
-def test_exploring_actions_hold_the_grip_with_grip_hold_eps():
-    """With grip_hold_eps the exploring grip repeats from step to step while the motion
-    components keep their per-step noise; hold_eps (N, A) of 0 keeps an agent's grip its own;
-    start_episodes ends the holds."""
-    obs = np.random.default_rng(0).normal(size=(64, 2, 7))
-    agent = small_agent(grip_hold_eps=1.0, grip_hold_steps=50, noise_std=0.1)
-    rng = np.random.default_rng(1)
-    a = agent.act(obs, rng, explore=True)
-    on = agent.grip_hold.left > 0                   # (64, 2): holds with steps left (n > 1)
-    assert on.mean() > 0.9
-    b = agent.act(obs, rng, explore=True)
-    np.testing.assert_array_equal(a[on[:, 1], 1, 2], b[on[:, 1], 1, 2])   # agent 1's grip held
-    np.testing.assert_array_equal(a[on[:, 0], 0, 1], b[on[:, 0], 0, 1])   # agent 0's (2nd of 2)
-    assert not np.allclose(a[:, :, 0], b[:, :, 0])                       # motion: fresh noise
-    agent.start_episodes(np.ones(64, dtype=bool))
-    policy = agent.act(obs)
-    eps = np.zeros((64, 2))
-    eps[:, 1] = 1.0
-    c = agent.act(obs, rng, explore=True, hold_eps=eps)
-    assert np.abs(c[:, 0, 1] - policy[:, 0, 1]).max() < 0.6               # agent 0: noise only
-    assert not np.isin(c[:, 1, 2], a[:, 1, 2]).any()                      # agent 1: new holds
-
-
-def test_policy_delay_steps_the_actors_at_every_dth_update_and_the_critics_at_every_one():
-    """TD3's delayed policy updates: with policy_delay 2 the actors change at updates 1, 3,
-    ... and not at 2, 4; the critics change at every update; the first update is the same
-    as without the delay; "actor_loss" is reported only when the actors stepped."""
-    delayed, plain = small_agent(policy_delay=2), small_agent()
-    batch = random_batch()
-
-    def weights(net):
-        return [p.detach().clone() for p in net.parameters()]
-
-    out_delayed, out_plain = delayed.update(batch), plain.update(batch)
-    assert out_delayed == pytest.approx(out_plain, rel=1e-6)
-    for pd, pp in zip(delayed.actor.parameters(), plain.actor.parameters()):
-        torch.testing.assert_close(pd, pp)
-    for update in (2, 3, 4):
-        actor, critic = weights(delayed.actor), weights(delayed.critic)
-        out = delayed.update(random_batch(seed=update))
-        actor_moved = any(not torch.equal(a, p) for a, p in zip(actor, delayed.actor.parameters()))
-        critic_moved = any(not torch.equal(c, p) for c, p in zip(critic, delayed.critic.parameters()))
-        assert critic_moved
-        assert actor_moved == (update % 2 == 1) == ("actor_loss" in out)
-    with pytest.raises(ValueError, match="policy_delay"):
-        DADDPGConfig(policy_delay=0)

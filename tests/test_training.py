@@ -397,27 +397,6 @@ def test_curriculum_probe_measures_the_later_starts_with_the_deterministic_polic
         curriculum_config(curriculum_probe=4)
 
 
-def test_reach_action_l2_applies_while_the_frontier_is_the_normal_start(tmp_path):
-    config = curriculum_config(start_curriculum=0.5, reach_action_l2=0.001,
-                               algo=DADDPGConfig(hidden=(16, 16), action_l2=0.5))
-    trainer = Trainer.start(config, tmp_path / "run", progress=False)
-    try:
-        assert trainer.curriculum.frontier() == 2 and trainer.scheduled_action_l2() == 0.5
-        for k in (2, 1):                       # the later classes succeed: frontier at reach
-            trainer.curriculum.record(np.full((64, 2), k), np.ones(64, bool))
-        assert trainer.curriculum.frontier() == 0 and trainer.scheduled_action_l2() == 0.001
-        trainer.run()                          # the rounds hand the weight to the learner
-        assert trainer.curriculum.frontier() == 0 and trainer.agent.action_l2 == 0.001
-        trainer.curriculum.record(np.full((64, 2), 1), np.zeros(64, bool))    # grasp unlearned
-        assert trainer.scheduled_action_l2() == 0.5
-    finally:
-        trainer.close()
-    with pytest.raises(ValueError, match="reach_action_l2 follows"):
-        TrainConfig.paper().with_(reach_action_l2=0.001)
-    with pytest.raises(ValueError, match="reach_action_l2 must be"):
-        curriculum_config(start_curriculum=0.5, reach_action_l2=-1.0)
-
-
 def test_far_action_l2_weighs_the_penalty_by_the_distance_to_the_box(tmp_path):
     config = curriculum_config(far_action_l2=0.001, near_box_radius=0.05, episodes=8,
                                algo=DADDPGConfig(hidden=(16, 16), action_l2=0.5, batch_size=16,
@@ -479,46 +458,8 @@ def test_near_random_eps_sets_the_share_of_random_actions_near_the_box(tmp_path)
         assert plain.random_eps(obs) is None
     finally:
         plain.close()
-    narrow = Trainer.start(curriculum_config(near_random_eps=0.0, calm_radius=0.02, episodes=8,
-                                             algo=config.algo),
-                           tmp_path / "narrow", progress=False)
-    try:   # 3 cm from the box: calm within 5 cm, exploring within a calm radius of 2 cm
-        np.testing.assert_allclose(narrow.random_eps(obs), [[0.3, 0.3], [0.3, 0.0]])
-    finally:
-        narrow.close()
     with pytest.raises(ValueError, match="near_random_eps must be"):
         curriculum_config(near_random_eps=1.5)
-    with pytest.raises(ValueError, match="calm_radius must be"):
-        curriculum_config(near_random_eps=0.0, calm_radius=0.0)
-    with pytest.raises(ValueError, match="set near_random_eps too"):
-        curriculum_config(calm_radius=0.02)
-
-
-def test_grip_holds_start_only_away_from_the_box(tmp_path):
-    """algo.grip_hold_eps applies farther than near_box_radius from the box and is 0 nearer
-    (no hold opens a hand at its box); the loop passes it to every exploring step."""
-    config = curriculum_config(near_box_radius=0.05, episodes=8,
-                               algo=DADDPGConfig(hidden=(16, 16), grip_hold_eps=0.2, batch_size=16,
-                                                 warmup_steps=50))
-    trainer = Trainer.start(config, tmp_path / "run", progress=False)
-    try:
-        obs = box_offset_obs(config, trainer.vec.obs_size, [
-            [[0.03, 0.0, 0.0]] * 2, [[0.0, 0.0, -0.2], [0.0, 0.0, 0.0]]])
-        np.testing.assert_allclose(trainer.hold_eps(obs), [[0.0, 0.0], [0.2, 0.0]])
-        seen = exploring_arguments(trainer, "hold_eps")
-        assert seen and all(e is not None and e.shape == (4, 2) for e in seen)
-        assert all(set(np.unique(e)) <= {0.0, 0.2} for e in seen)
-    finally:
-        trainer.close()
-    plain = Trainer.start(curriculum_config(episodes=8), tmp_path / "plain", progress=False)
-    try:
-        assert plain.hold_eps(obs) is None
-    finally:
-        plain.close()
-    with pytest.raises(ValueError, match="grip_hold_eps"):
-        DADDPGConfig(grip_hold_eps=1.5)
-    with pytest.raises(ValueError, match="grip_hold_steps"):
-        DADDPGConfig(grip_hold_steps=0)
 
 
 def test_approach_shaping_is_potential_based_on_the_grip_to_box_distance(tmp_path):
@@ -576,82 +517,6 @@ def test_carry_shaping_adds_a_potential_on_the_box_to_target_distance(tmp_path):
         curriculum_config(carry_shaping=-0.5)
 
 
-def test_grasp_shaping_pays_k_for_the_grasp_and_takes_it_back_for_a_drop(tmp_path):
-    """grasp_shaping k: phi is +k while the grasp predicate holds (the environment's own
-    GraspRule on the observation), so making the grasp pays gamma k, a drop costs k and
-    holding on -(1 - gamma) k; on real observations of arms started holding their boxes and
-    at their boxes with the fingers open."""
-    from dualarm.envs.rules import GraspRule, observation_layout
-    from dualarm.training.loop import make_vector_env
-
-    config = curriculum_config(grasp_shaping=0.5, episodes=8)       # no other potential
-    layout = observation_layout(config.task_config().observes_joint_angles)
-    rule = GraspRule(config.task_config())
-    observed = []
-    for start in (2, 1):               # (2 copies, 2 arms, O): holding; at the box, open
-        vec = make_vector_env(config, 2, start=start)
-        observed.append(np.stack([vec.reset(i, 5 + i) for i in range(2)]))
-    held, open_ = observed
-    parts = lambda o: (o[..., layout["object_rel_pos"]], o[..., layout["fingers"]],  # noqa: E731
-                       o[..., layout["object_pos"]])
-    assert rule.held(*parts(held)).tolist() == [[1.0, 1.0]] * 2
-    assert rule.held(*parts(open_)).tolist() == [[0.0, 0.0]] * 2
-    trainer = Trainer.start(config, tmp_path / "run", progress=False)
-    try:
-        held, open_ = (torch.as_tensor(o, dtype=torch.float32) for o in (held, open_))
-        torch.testing.assert_close(trainer.potential(held), torch.full((2, 2), 0.5))
-        torch.testing.assert_close(trainer.potential(open_), torch.zeros(2, 2))
-        g, not_done, done = config.algo.gamma, torch.zeros(2), torch.ones(2)
-        shaping = lambda o, o2, d=not_done: trainer.shaping({"obs": o, "next_obs": o2, "done": d})  # noqa: E731
-        torch.testing.assert_close(shaping(open_, held), torch.full((2, 2), 0.5 * g))   # grasp
-        torch.testing.assert_close(shaping(held, open_), torch.full((2, 2), -0.5))      # drop
-        torch.testing.assert_close(shaping(held, held), torch.full((2, 2), 0.5 * (g - 1)))
-        torch.testing.assert_close(shaping(held, held, done), torch.full((2, 2), -0.5))  # success
-    finally:
-        trainer.close()
-    with pytest.raises(ValueError, match="grasp_shaping must be"):
-        curriculum_config(grasp_shaping=-0.5)
-
-
-def test_early_close_shaping_costs_k_while_a_hand_is_closed_before_its_reach(tmp_path):
-    """early_close_shaping k: phi is -k while an arm's fingers count as closed (the task's
-    finger-gap test) farther than reach_threshold from its box, else 0: an open hand at its
-    box, a hand holding its box and a closed hand within reach are free; the same hand closed
-    5 cm away costs k, so closing early pays -gamma k and opening again +k."""
-    from dualarm.envs.rules import FINGER_CLOSED, observation_layout
-    from dualarm.training.loop import make_vector_env
-
-    config = curriculum_config(early_close_shaping=0.25, episodes=8)  # no other potential
-    layout = observation_layout(config.task_config().observes_joint_angles)
-    observed = []
-    for start in (2, 1):               # (2 copies, 2 arms, O): holding; at the box, open
-        vec = make_vector_env(config, 2, start=start)
-        observed.append(np.stack([vec.reset(i, 5 + i) for i in range(2)]))
-    held, open_ = observed
-    closed_near, closed_far = open_.copy(), open_.copy()
-    for o, offset in ((closed_near, 0.01), (closed_far, 0.05)):
-        o[..., layout["fingers"]] = FINGER_CLOSED
-        o[..., layout["object_rel_pos"]] = [offset, 0.0, 0.0]
-    trainer = Trainer.start(config, tmp_path / "run", progress=False)
-    try:
-        phi = lambda o: trainer.potential(torch.as_tensor(o, dtype=torch.float32))  # noqa: E731
-        for free in (held, open_, closed_near):
-            torch.testing.assert_close(phi(free), torch.zeros(2, 2))
-        torch.testing.assert_close(phi(closed_far), torch.full((2, 2), -0.25))
-        np.testing.assert_allclose(trainer.potential(closed_far), -0.25)     # numpy too
-        g, not_done = config.algo.gamma, torch.zeros(2)
-        as_t = lambda o: torch.as_tensor(o, dtype=torch.float32)  # noqa: E731
-        shaping = lambda o, o2: trainer.shaping({"obs": as_t(o), "next_obs": as_t(o2), "done": not_done})  # noqa: E731
-        far_open = open_.copy()
-        far_open[..., layout["object_rel_pos"]] = [0.05, 0.0, 0.0]
-        torch.testing.assert_close(shaping(far_open, closed_far), torch.full((2, 2), -0.25 * g))
-        torch.testing.assert_close(shaping(closed_far, far_open), torch.full((2, 2), 0.25))
-    finally:
-        trainer.close()
-    with pytest.raises(ValueError, match="early_close_shaping must be"):
-        curriculum_config(early_close_shaping=-0.5)
-
-
 def test_mirror_episodes_stores_each_episode_and_its_mirror_image(tmp_path):
     """With mirror_episodes the replay holds every real episode followed by its mirror image
     (dualarm.envs.mirror), guide term recomputed; episodes and returns count the real ones
@@ -695,10 +560,6 @@ def test_curriculum_options_are_checked(tmp_path):
         TrainConfig.paper().with_(start_curriculum=0.5)
     with pytest.raises(ValueError, match="her_share"):
         TrainConfig.paper().with_(her_share=1.5)
-    with pytest.raises(ValueError, match="her_goal_jitter"):
-        TrainConfig.paper().with_(her_goal_jitter=0.03)                 # no hindsight goals to move
-    with pytest.raises(ValueError, match="her_goal_jitter"):
-        TrainConfig.paper().with_(her_share=0.8, her_goal_jitter=-0.01)
     with pytest.raises(Exception, match="start_probs"):
         Trainer.start(small_toy_config(start_probs=(0.0, 0.0, 1.0)), tmp_path / "toy",
                       make_env=TwoPointMassEnv, progress=False)

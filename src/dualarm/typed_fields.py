@@ -118,3 +118,32 @@ def check_field_types(obj) -> None:
                              f" ({type(value).__name__})") from None
         if fixed is not value:
             object.__setattr__(obj, f.name, fixed)
+
+
+#: A removed option's value that is today's behaviour, or ``ANY`` where every value is (an
+#: option that only mattered beside another removed one).
+ANY = object()
+
+
+def drop_removed_fields(d: dict, removed: Mapping, where: str) -> dict:
+    """``d`` without the options that left a settings dataclass: each may still be given with
+    the one value that is today's behaviour (so old run directories and files keep loading);
+    any other value is refused, naming the field.
+
+    Args:
+        d: the settings as read from a file.
+        removed: field name -> its value today (``ANY``: every value), e.g. the dataclass's
+            ``REMOVED_FIELDS``.
+        where: prefixes the error (the file and section).
+    """
+    d = dict(d)
+    for name, value in removed.items():
+        if name not in d:
+            continue
+        given = d.pop(name)
+        same = given is value if value is None else \
+            isinstance(given, bool) == isinstance(value, bool) and given == value
+        if value is not ANY and not same:
+            raise InputError(f"{where}: {name}: {given!r} is no longer an option (only "
+                             f"{value!r}; docs/learning-runs.md names the commit that had it)"[:300])
+    return d

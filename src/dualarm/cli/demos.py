@@ -33,7 +33,7 @@ def check_suffix(path: Path, suffixes: tuple[str, ...]) -> None:
 
 
 def cmd_demos_generate(args: argparse.Namespace) -> int:
-    """Generate a demonstration set (IMU CSVs and labels) from the scripted expert."""
+    """Generate a demonstration set (IMU CSVs, labels and scene) from the scripted expert."""
     from dualarm.sim_demos.generate import generate_demos, write_demo_set
 
     out = Path(args.output)
@@ -42,7 +42,8 @@ def cmd_demos_generate(args: argparse.Namespace) -> int:
     if not args.quiet:
         for d in demos:
             print(f"{d.name}: env seed {d.env_seed}, {d.time[-1]:.2f} s, {len(d.time)} samples", file=sys.stderr)
-        print(f"wrote {len(paths) - 1} recordings and {paths[-1].name} in {out}/", file=sys.stderr)
+        others = ", ".join(p.name for p in paths[len(demos):])
+        print(f"wrote {len(demos)} recordings, {others} in {out}/", file=sys.stderr)
     return 0
 
 

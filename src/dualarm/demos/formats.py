@@ -2,7 +2,8 @@
 folder, the CSV layout of a recording with gripper events, and content hashes.
 
 A demonstration folder holds one recording per demonstration (``demo_00.csv.gz`` ..., any of
-``DEMO_EXTENSIONS``) and a labels file ``LABELS_NAME`` (:mod:`dualarm.demos.labels`). The CSV
+``DEMO_EXTENSIONS``), a labels file ``LABELS_NAME`` (:mod:`dualarm.demos.labels`) and a scene
+file ``SCENE_NAME`` (:mod:`dualarm.demos.scene`). The CSV
 layout is that of ``dualarm mocap joints`` (``time`` and ``S_qw..S_qz`` per sensor) plus the
 gripper events ``GRIP_COLUMNS`` (1 while the hand is closed; other readers ignore them).
 """
@@ -26,6 +27,8 @@ from dualarm.mocap.recording import SENSORS, Recording
 DEFAULT_DEMO_DIR = Path(__file__).resolve().parents[1] / "data" / "demos"
 #: Name of the labels file inside a demonstration folder.
 LABELS_NAME = "labels.csv"
+#: Name of the scene file inside a demonstration folder (:mod:`dualarm.demos.scene`).
+SCENE_NAME = "scene.csv"
 #: Columns of the gripper events in a demonstration CSV (1 = hand closed).
 GRIP_COLUMNS = ("left_grip", "right_grip")
 #: Recording file endings recognised in a demonstration folder.
@@ -62,7 +65,8 @@ def demo_files(demo_dir: str | os.PathLike, exclude: Sequence[str | os.PathLike]
     for path in sorted(d.iterdir()):
         lower = path.name.lower()
         ext = next((e for e in DEMO_EXTENSIONS if lower.endswith(e)), None)
-        if ext is None or not path.is_file() or lower == LABELS_NAME or path.name.startswith(".") \
+        if ext is None or not path.is_file() or lower in (LABELS_NAME, SCENE_NAME) \
+                or path.name.startswith(".") \
                 or path.resolve() in skip:
             continue
         name = path.name[:-len(ext)]

@@ -33,10 +33,7 @@ from dualarm.envs.rules import (FINGER_CLOSED, FINGER_OPEN, GAP_AT_ZERO, GraspRu
 from dualarm.errors import InputError
 from dualarm.envs.scene import GRIP_DOWN_QUAT, REST_POSTURE, compiled_model
 from dualarm.kinematics import ARMS, BAXTER_JOINT_LIMITS, BAXTER_JOINT_NAMES
-from dualarm.sampling import ball_offsets, disc_offset
 
-#: Draws of a ``grasp_spread`` start before it falls back to the box's centre.
-GRASP_SPREAD_TRIES = 8
 #: Height (m) above its box at which the longest approach start ends (``approach_starts``).
 APPROACH_HEIGHT = 0.05
 
@@ -164,9 +161,6 @@ class _Indices:
         self.arm_ctrl = np.array([[aid(f"{a}_{j}_servo") for j in BAXTER_JOINT_NAMES] for a in ARMS])
         fingers = [[f"{a}_gripper_r_finger_joint", f"{a}_gripper_l_finger_joint"] for a in ARMS]
         self.finger_qpos = np.array([[model.jnt_qposadr[jid(n)] for n in pair] for pair in fingers])
-        self.finger_pads = np.array([[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM,
-                                                        f"{a}_gripper_{f}_fingerpad_g0") for f in "rl"]
-                                     for a in ARMS])      # the fingers' only colliding geoms
         self.finger_dof = np.array([[model.jnt_dofadr[jid(n)] for n in pair] for pair in fingers])
         self.finger_ctrl = np.array([[aid(f"{a}_gripper_gripper_{f}_finger_joint") for f in "rl"]
                                      for a in ARMS])
@@ -221,20 +215,6 @@ class BaxterBatch:
             fraction of the way from its home position to ``APPROACH_HEIGHT`` above its box
             (gripper down, fingers open) instead of at home: starts that cover the approach,
             so that the value of being at the box can spread back along it.
-        approach_spread: metres; with ``approach_starts``, the point above the box where an
-            approach start's line ends is moved by a uniform offset within a horizontal disc
-            of this radius, so that the starts near the box also need the last lateral
-            correction before the fingers may close. 0: straight above the box.
-        held_spread: metres; an arm that starts holding its box holds it at a point drawn
-            uniformly within a ball of this radius around the one on the way from the box's
-            start to its target, so that the held starts also need the carry's corrections
-            off that line. 0: on the line.
-        grasp_spread: metres; an arm that starts at its box begins with its grip site at a
-            point drawn uniformly within the upper half-ball of this radius around the box's
-            centre, drawn again (up to ``GRASP_SPREAD_TRIES`` times, then the centre) while a
-            finger pad would touch the box or the table, so that the grasp starts also need
-            the last centimetres of the reach, beside and above the box, and an off-centre
-            hold. 0: at the centre.
 
     Actions are (num_envs, 2, 4) in cartesian mode (dx, dy, dz, grip) and (num_envs, 2, 8)
     in joint mode (7 joint deltas, grip), arms in the order left, right, each value in
@@ -244,22 +224,12 @@ class BaxterBatch:
     def __init__(self, config: TaskConfig = TaskConfig(), constraints: ConstraintSet | None = None,
                  num_envs: int = 1, render_size: tuple[int, int] = (480, 640),
                  start_probs: tuple[float, float, float] | None = None,
-                 approach_starts: bool = False, approach_spread: float = 0.0,
-                 held_spread: float = 0.0, grasp_spread: float = 0.0):
+                 approach_starts: bool = False):
         if num_envs < 1:
             raise ValueError(f"num_envs must be at least 1, got {num_envs}")
         self.config = config
         self.start_probs = check_start_probs(start_probs)
         self.approach_starts = approach_starts
-        if approach_spread < 0:
-            raise ValueError(f"approach_spread must be >= 0 m, got {approach_spread}")
-        self.approach_spread = float(approach_spread)
-        if held_spread < 0:
-            raise ValueError(f"held_spread must be >= 0 m, got {held_spread}")
-        self.held_spread = float(held_spread)
-        if grasp_spread < 0:
-            raise ValueError(f"grasp_spread must be >= 0 m, got {grasp_spread}")
-        self.grasp_spread = float(grasp_spread)
         if config.condition == "none":
             if constraints is not None:
                 raise ValueError("condition 'none' has no guide term: pass constraints=None")
@@ -379,52 +349,29 @@ class BaxterBatch:
     def _start_later(self, i: int, starts: np.ndarray, rng: np.random.Generator) -> None:
         """Put the arms of copy ``i`` whose ``starts`` entry is 1 or 2 at that sub-task.
 
-        grasp (1): the grip site at the resting box's centre, fingers open (reach done), or
-        within ``grasp_spread`` above and beside it (reach done only within
-        ``reach_threshold``).
+        grasp (1): the grip site at the resting box's centre, fingers open (reach done).
         align (2): the box lifted to a point a uniform fraction of the way from its start to
-        its target (moved within ``held_spread`` of it; at least ``lift_height`` + 1 cm above
-        its resting height), between fingers closing on it (reach and grasp done). The arm's joints come from inverse
+        its target (at least ``lift_height`` + 1 cm above its resting height), between
+        fingers closing on it (reach and grasp done). The arm's joints come from inverse
         kinematics with the gripper pointing down; a short settle (two control periods)
         lets the fingers take hold. Arms at reach (0) stay at home, or with
-        ``approach_starts`` begin a uniform fraction of the way to above their box (moved
-        within ``approach_spread`` of it).
+        ``approach_starts`` begin a uniform fraction of the way to above their box.
         """
         c, m, d, ix = self.config, self.model, self.datas[i], self.ix
         grip = d.site_xpos[ix.grip_site].copy()               # (2, 3) home grip sites
         box = self.box_start_pos[i].copy()
-        spread = []        # arms whose grasp start is drawn beside the box (grasp_spread)
         for arm in range(2):
             if starts[arm] == 0:
                 if self.approach_starts:
                     above = box[arm] + APPROACH_HEIGHT * UP
-                    if self.approach_spread > 0:       # drawn only then: same runs without it
-                        above[:2] += disc_offset(rng, self.approach_spread)
                     grip[arm] = grip[arm] + rng.uniform() * (above - grip[arm])
                 continue
             if starts[arm] == 2:
                 p = box[arm] + rng.uniform() * (self.target_pos[i, arm] - box[arm])
-                if self.held_spread > 0:           # drawn only then: same runs without it
-                    p = p + ball_offsets(rng, (3,), self.held_spread)
                 p[2] = max(p[2], self._rule.lifted_z + 0.01)
                 box[arm] = p
             grip[arm] = box[arm]
-            if starts[arm] == 1 and self.grasp_spread > 0:   # drawn only then: same runs without it
-                spread.append(arm)
-        for _ in range(GRASP_SPREAD_TRIES):
-            for arm in spread:
-                offset = ball_offsets(rng, (3,), self.grasp_spread)
-                offset[2] = abs(offset[2])                  # above the centre, not into the table
-                grip[arm] = box[arm] + offset
-            solve_grip_ik(m, d, ix, grip)
-            if spread:
-                d.qpos[ix.box_pos] = box
-                spread = self._pads_touching(d, spread)      # those to draw again
-            if not spread:
-                break
-        else:                                               # no clear draw: the centred start
-            grip[spread] = box[spread]
-            solve_grip_ik(m, d, ix, grip)
+        solve_grip_ik(m, d, ix, grip)
         d.qpos[ix.box_pos] = box
         d.qvel[:] = 0.0
         held = starts == 2
@@ -440,18 +387,6 @@ class BaxterBatch:
         mujoco.mj_forward(m, d)
         mujoco.mj_step(m, d, nstep=2 * c.substeps)
         mujoco.mj_kinematics(m, d)
-
-    def _pads_touching(self, d, arms: list[int]) -> list[int]:
-        """Those of ``arms`` whose finger pads touch anything (the box, the table) in ``d``'s
-        present pose (positions and collisions computed here)."""
-        mujoco.mj_fwdPosition(self.model, d)
-        pads = {int(g): arm for arm in arms for g in self.ix.finger_pads[arm]}
-        touching = set()
-        for c in d.contact[:d.ncon]:
-            for g in (c.geom1, c.geom2):
-                if g in pads and c.dist < 0:
-                    touching.add(pads[g])
-        return [arm for arm in arms if arm in touching]
 
     # ------------------------------------------------------------------- step
     def check_actions(self, action) -> np.ndarray:

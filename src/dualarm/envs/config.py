@@ -137,6 +137,16 @@ class TaskConfig:
             return self.condition != "none"
         return self.joint_angles_in_obs
 
+    def workspace(self):
+        """Where a demonstration's scene may place the boxes and targets
+        (``dualarm.demos.scene.Workspace``): x and y within the grip sites' command box, boxes
+        resting on the table, targets between the table top and ``grip_max_z``."""
+        from dualarm.demos.scene import Workspace
+
+        return Workspace(self.grip_x_range, self.grip_y_range,
+                         self.scene.table_height + self.scene.box_half_size, 0.01,
+                         self.scene.table_height, self.grip_max_z)
+
     @property
     def control_period(self) -> float:
         """Seconds of simulated time per environment step."""

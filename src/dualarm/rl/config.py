@@ -5,35 +5,31 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields, replace
 
 from dualarm.errors import InputError
-from dualarm.typed_fields import check_field_types
+from dualarm.typed_fields import ANY, check_field_types, drop_removed_fields
 
 
 #: The actors a deterministic policy can act with (``DADDPGConfig.eval_actor``).
 EVAL_ACTORS = ("online", "target", "average")
 
-#: Options removed from DADDPGConfig (issue 17; docs/training.md names the last commit
-#: that has each), with the one value a file may still give: old run directories keep loading.
-REMOVED_FIELDS = {"noise": "gaussian", "value_rescale": False, "advantage_learning": 0.0}
+#: Options removed from DADDPGConfig, with the one value a file may still give (old run
+#: directories keep loading); docs/learning-runs.md and docs/training.md name the commit that
+#: had each and what it measured.
+REMOVED_FIELDS = {"noise": "gaussian", "value_rescale": False, "advantage_learning": 0.0,
+                  "ou_theta": ANY, "grip_hold_eps": 0.0, "grip_hold_steps": ANY,
+                  "free_grip": False, "critic_layer_norm": False, "random_grip": True,
+                  "policy_delay": 1}
 
 
 def _upgrade(d: dict, where: str) -> dict:
     """A settings dict of an older layout in today's: ``polyak`` -> ``tau``, removed options
-    dropped where they have the value that is today's behaviour (``ou_theta`` only mattered
-    with OU noise)."""
+    dropped where they have the value that is today's behaviour."""
     d = dict(d)
     if "polyak" in d:
         if "tau" in d:
             raise InputError(f"{where}: give tau or polyak (tau = 1 - polyak), not both")
         polyak = d.pop("polyak")
         d["tau"] = 1.0 - polyak if isinstance(polyak, (int, float)) and not isinstance(polyak, bool) else polyak
-    d.pop("ou_theta", None)
-    for name, value in REMOVED_FIELDS.items():
-        if name in d:
-            if d[name] != value or isinstance(d[name], bool) != isinstance(value, bool):
-                raise InputError(f"{where}: {name}: {d[name]!r} is no longer an option (only "
-                                 f"{value!r}; docs/training.md names the commit that had it)")
-            del d[name]
-    return d
+    return drop_removed_fields(d, REMOVED_FIELDS, where)
 
 
 @dataclass(frozen=True)
@@ -67,24 +63,9 @@ class DADDPGConfig:
     random_eps: float = 0.0
     """Probability of a uniformly random action per step and agent (Plappert: 0.3; random
     jumps of up to 5 cm knock the boxes over: 0 reached the boxes ~2x as often)."""
-    random_grip: bool = True
-    """Random actions (``random_eps``) replace the grip command too. False keeps the policy's
-    (noisy) grip command in a random step, so that exploring the motion does not open a hand
-    that holds its box (the grip is each agent's last action component)."""
-    grip_hold_eps: float = 0.0
-    """Probability per step and agent of starting to hold a random grip command for several
-    steps (``rl.noise.HeldGrip``, epsilon-z-greedy on the grip; 0 = off): explores an open
-    hand through an approach that per-step noise cannot (docs/learning-runs.md)."""
-    grip_hold_steps: int = 8
-    """The longest hold of ``grip_hold_eps`` in steps; durations are uniform on 1..this."""
     action_l2: float = 0.1
     """Weight of the mean squared action in the actor loss (Plappert: 1.0, made for returns of
     -50..0; with this task's distance rewards 1.0 kept the arms nearly still)."""
-    free_grip: bool = False
-    """``action_l2`` leaves each agent's last action component (the grip command in both of
-    the Baxter task's control modes) unpenalised. Penalised, the learned grip squeezes at a
-    third of its range and the box slides down the fingers out of the grasp tolerance while
-    it is lifted (docs/learning-runs.md)."""
     obs_clip: float = 5.0
     """Normalised observations are clipped to +-obs_clip (Plappert: 5)."""
     grad_clip: float = 10.0
@@ -102,10 +83,6 @@ class DADDPGConfig:
     mean (WD3, He and Hou 2020): less of the minimum's under-estimation, which compounds
     over the steps between a success and the reset (docs/learning-runs.md).
     1 = TD3's minimum."""
-    critic_layer_norm: bool = False
-    """Layer normalisation in every hidden layer of the critics (Ba et al. 2016): bounds the
-    values a critic extrapolates to off the data, which an actor otherwise saturates towards
-    (Ball et al. 2023, RLPD). Off by default (docs/learning-runs.md)."""
     demo_batch_size: int = 0
     """Transitions drawn from the demonstration buffer into every update, next to
     ``batch_size`` from replay (Nair et al. 2018; needs demonstrations, e.g. TrainConfig's
@@ -120,12 +97,6 @@ class DADDPGConfig:
     targets relabel every step of the n (Yang et al. 2021). 1: the paper's Eq. 13."""
     updates_per_step: float = 0.5
     """Gradient updates per joint environment step (the update-to-data ratio)."""
-    policy_delay: int = 1
-    """The actors take a gradient step at every ``policy_delay``-th update, the critics at
-    every one (TD3's delayed policy updates, Fujimoto et al. 2018, who use 2: the actor
-    climbs a critic that has had more steps to settle). The actor's pass is about a quarter
-    of an update's cost. The target networks and averaged actors move at every update, so
-    ``tau`` and ``policy_average`` keep their meaning per update. 1: every update."""
     eval_actor: str = "online"
     """The actors the deterministic policy acts with (evaluations, the best policy file,
     ``dualarm eval/play/export``; the curriculum's probes always act with the online actors,
@@ -151,13 +122,11 @@ class DADDPGConfig:
             "batch_size": self.batch_size >= 1, "gamma": 0 <= self.gamma < 1,
             "tau": 0 < self.tau <= 1, "buffer_size": self.buffer_size >= self.batch_size,
             "noise_std": self.noise_std >= 0, "random_eps": 0 <= self.random_eps <= 1,
-            "grip_hold_eps": 0 <= self.grip_hold_eps <= 1, "grip_hold_steps": self.grip_hold_steps >= 1,
             "action_l2": self.action_l2 >= 0, "obs_clip": self.obs_clip > 0,
             "grad_clip": self.grad_clip >= 0, "reward_scale": self.reward_scale > 0,
             "q_clip": self.q_clip >= 0, "target_noise": self.target_noise >= 0,
             "twin_min_weight": 0 <= self.twin_min_weight <= 1 and (self.twin_critics or self.twin_min_weight == 1),
             "updates_per_step": self.updates_per_step >= 0, "n_step": self.n_step >= 1,
-            "policy_delay": self.policy_delay >= 1,
             "demo_batch_size": self.demo_batch_size >= 0, "bc_weight": self.bc_weight >= 0,
             "warmup_steps": self.warmup_steps >= 0, "eval_actor": self.eval_actor in EVAL_ACTORS,
             "policy_average": 0 <= self.policy_average <= 1,

@@ -25,7 +25,7 @@ import torch
 
 from dualarm.rl.config import EVAL_ACTORS, DADDPGConfig
 from dualarm.rl.networks import StackedMLP
-from dualarm.rl.noise import GaussianNoise, HeldGrip
+from dualarm.rl.noise import GaussianNoise
 from dualarm.rl.normalizer import RunningNormalizer
 
 
@@ -70,11 +70,9 @@ class DADDPG:
         self.critics_per_agent = 2 if c.twin_critics else 1
         k = a * self.critics_per_agent
         self.actor = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True, g, final_scale=0.1)
-        self.critic = StackedMLP(k, state_size + self.act_size, h, c.hidden, False, g, final_scale=0.1,
-                                 layer_norm=c.critic_layer_norm)
+        self.critic = StackedMLP(k, state_size + self.act_size, h, c.hidden, False, g, final_scale=0.1)
         self.actor_target = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True)
-        self.critic_target = StackedMLP(k, state_size + self.act_size, h, c.hidden,
-                                        layer_norm=c.critic_layer_norm)
+        self.critic_target = StackedMLP(k, state_size + self.act_size, h, c.hidden)
         self.actor_target.load_state_dict(self.actor.state_dict())
         self.critic_target.load_state_dict(self.critic.state_dict())
         # policy_average: a slower average of the actors, for acting only (None: off)
@@ -91,25 +89,18 @@ class DADDPG:
         self.action_mask = torch.zeros(a, 1, self.act_size)
         for i, n in enumerate(act_sizes):
             self.action_mask[i, :, :n] = 1.0
-        # (A, U) True at each agent's grip command, its last real action component
-        self._grip_columns = np.zeros((a, self.act_size), dtype=bool)
-        for i, n in enumerate(act_sizes):
-            self._grip_columns[i, n - 1] = True
-        # the components action_l2 penalises: the real ones, less the grip where it is free
-        self.penalty_mask = self.action_mask.clone()
-        if c.free_grip:
-            self.penalty_mask[torch.from_numpy(self._grip_columns)[:, None, :]] = 0.0
+        # the components action_l2 penalises: the real ones
+        self.penalty_mask = self.action_mask
         # the penalty's weight now: config.action_l2, unless the training loop schedules it
         self.action_l2 = c.action_l2
         self.noise = GaussianNoise(c.noise_std)
-        self.grip_hold = HeldGrip(c.grip_hold_eps, c.grip_hold_steps)
         # target smoothing noise draws from the learner's own stream, not torch's global one
         self.torch_rng = torch.Generator().manual_seed(seed + 1)
         self.updates = 0
 
     def action_penalty(self, actions: torch.Tensor, weight: torch.Tensor | None = None) -> torch.Tensor:
         """The action penalty per agent, (A,), from actions (A, B, U): the mean squared action
-        over every real component (all but the grip with ``free_grip``), times ``action_l2``
+        over every real component, times ``action_l2``
         (the attribute: the config's, or the loop's schedule), or times ``weight`` (A, B, 1),
         a weight per sample and agent, before the mean over the batch."""
         squared = actions ** 2 * self.penalty_mask
@@ -135,21 +126,17 @@ class DADDPG:
 
     def start_episodes(self, envs: np.ndarray) -> None:
         """New episodes begin in the environments of the boolean mask (N,): the exploration
-        that spans steps (held grips) starts afresh there."""
+        that spans steps starts afresh there."""
         self.noise.reset(envs)
-        self.grip_hold.reset(envs)
 
     def act(self, obs: np.ndarray, rng: np.random.Generator | None = None,
             explore: bool = False, random_eps: np.ndarray | None = None,
-            hold_eps: np.ndarray | None = None, actors: str | None = None) -> np.ndarray:
+            actors: str | None = None) -> np.ndarray:
         """Actions (N, A, U) in [-1, 1] for observations (N, A, O) of N environments.
 
         With ``explore``, noise is added and each agent's action is replaced by a uniform
-        random one with probability ``random_eps`` (both need ``rng``; without
-        ``random_grip`` the grip command stays the noisy policy's); with ``grip_hold_eps``
-        the grip commands being held replace the agents' (``HeldGrip``; call
-        ``start_episodes`` when episodes start). ``random_eps`` and ``hold_eps`` (N, A), if
-        given, are those probabilities per environment and agent in place of the config's.
+        random one with probability ``random_eps`` (both need ``rng``). ``random_eps`` (N, A),
+        if given, is that probability per environment and agent in place of the config's.
         Without ``explore``, ``actors`` names the actors acting (default ``eval_actor``).
         """
         with torch.inference_mode():
@@ -159,13 +146,9 @@ class DADDPG:
             c = self.config
             actions = np.clip(actions + self.noise.sample(rng, actions.shape), -1.0, 1.0)
             random = rng.uniform(-1.0, 1.0, size=actions.shape)
-            if not c.random_grip:
-                random = np.where(self._grip_columns, actions, random)
             eps = c.random_eps if random_eps is None else random_eps
             pick = rng.random(actions.shape[:2]) < eps
             actions = np.where(pick[..., None], random, actions)
-            if c.grip_hold_eps > 0:
-                actions = self.grip_hold.apply(rng, actions, self._grip_columns, hold_eps)
             actions *= self.action_mask[:, 0].numpy()
         return actions
 
@@ -264,8 +247,7 @@ class DADDPG:
                 :meth:`actor_loss`).
 
         Returns:
-            {"critic_loss", "actor_loss", "q_mean"} summed or averaged over agents;
-            "actor_loss" only at the updates that step the actors (``policy_delay``).
+            {"critic_loss", "actor_loss", "q_mean"} summed or averaged over agents.
 
         Raises:
             NonFiniteLoss: a loss is NaN or infinite (no parameter was changed).
@@ -285,15 +267,11 @@ class DADDPG:
             y = self.td_target(r, not_done, o2, discount)
         q = self._per_agent(self.critic(self._critic_input(o, a_taken)))
         critic_loss = ((y - q) ** 2).mean(dim=(2, 3)).sum()       # per head and sample, summed over critics
-        # The actor climbs the critic as it is before this step's critic update; with
-        # policy_delay d, only at every d-th update (TD3's delayed policy updates).
-        step_actors = self.updates % self.config.policy_delay == 0
-        actor_loss = torch.zeros(())
-        if step_actors:
-            weight = batch.get("penalty_weight")
-            if weight is not None:
-                weight = weight.transpose(0, 1).unsqueeze(-1)      # (A, B, 1)
-            actor_loss = self.actor_loss(o, q, a_taken, demo_rows, weight)
+        # The actor climbs the critic as it is before this step's critic update.
+        weight = batch.get("penalty_weight")
+        if weight is not None:
+            weight = weight.transpose(0, 1).unsqueeze(-1)          # (A, B, 1)
+        actor_loss = self.actor_loss(o, q, a_taken, demo_rows, weight)
 
         if not (torch.isfinite(critic_loss) and torch.isfinite(actor_loss)):
             raise NonFiniteLoss(f"non-finite loss at update {self.updates + 1}: critic "
@@ -305,15 +283,12 @@ class DADDPG:
         (critic_loss + actor_loss).backward()
         self._clip(self.critic)
         self.critic_opt.step()
-        if step_actors:
-            self._clip(self.actor)
-            self.actor_opt.step()
+        self._clip(self.actor)
+        self.actor_opt.step()
         self.soft_update()
         self.updates += 1
-        out = {"critic_loss": critic_loss.item(), "q_mean": self.q_total(q[0]).mean().item()}
-        if step_actors:
-            out["actor_loss"] = actor_loss.item()
-        return out
+        return {"critic_loss": critic_loss.item(), "actor_loss": actor_loss.item(),
+                "q_mean": self.q_total(q[0]).mean().item()}
 
     def _clip(self, net: torch.nn.Module) -> None:
         """Scale each agent's gradients so that their global norm is at most grad_clip."""
@@ -330,8 +305,7 @@ class DADDPG:
 
         Critic: target actor and target critic forward, critic forward and backward.
         Actor: actor forward and backward, the first twins' forward and input-gradient backward
-        (weight gradients of the critic are not computed in the actor pass), averaged over
-        the ``policy_delay`` updates that share one actor pass.
+        (weight gradients of the critic are not computed in the actor pass).
         """
         b = batch_size or self.config.batch_size
         fa, fc = self.actor.flops_per_sample(), self.critic.flops_per_sample()  # all stacks
@@ -339,7 +313,7 @@ class DADDPG:
         critic_pass = fa + fc + 3 * fc
         # actor forward and backward; the first twins' forward and input gradient
         actor_pass = 3 * fa + 2 * fc // self.critics_per_agent
-        return b * (critic_pass + actor_pass / self.config.policy_delay)
+        return b * (critic_pass + actor_pass)
 
     # -------------------------------------------------------- saving/loading
     _PARTS = ("actor", "critic", "actor_target", "critic_target", "actor_opt", "critic_opt",

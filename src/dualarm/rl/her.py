@@ -15,7 +15,6 @@ import numpy as np
 import torch
 
 from dualarm.rl.replay import ReplayBuffer
-from dualarm.sampling import ball_offsets
 
 #: next_obs (n, A, O) -> the goals the agents achieved there, (n, A, G).
 Achieved = Callable[[np.ndarray], np.ndarray]
@@ -40,17 +39,11 @@ class HindsightSampler:
             (``dualarm.training.relabel.TargetRelabeller.recombine``; None with ``recombine_share`` 0).
         recombine_share: fraction of each batch whose right arm's half comes from another
             row of the batch, after the hindsight goals (1-step rows only).
-        goal_jitter: radius (in the goals' units, m for positions) of a ball around each
-            hindsight goal within which it is moved uniformly at random, per agent: the
-            task's goals are met anywhere within a threshold of them, so a goal near the
-            achieved one is as true as the achieved one itself, and a batch shows the critics
-            the edge of success (goal-augmented replay, Lin et al. 2020). 0: the achieved
-            goals themselves, as HER.
     """
 
     def __init__(self, buffer: ReplayBuffer, achieved: Achieved | None, relabel: Relabel | None,
                  share: float = 0.8, n_step: int = 1, gamma: float | None = None,
-                 goal_jitter: float = 0.0, recombine=None, recombine_share: float = 0.0):
+                 recombine=None, recombine_share: float = 0.0):
         if not 0 <= share <= 1:
             raise ValueError(f"the hindsight share must be in [0, 1], got {share}")
         if share > 0 and (achieved is None or relabel is None):
@@ -59,9 +52,6 @@ class HindsightSampler:
             raise ValueError(f"n_step must be >= 1 (and > 1 needs gamma), got {n_step}")
         self.buffer, self.achieved, self.relabel, self.share = buffer, achieved, relabel, share
         self.n_step, self.gamma = int(n_step), gamma
-        if goal_jitter < 0:
-            raise ValueError(f"goal_jitter must be >= 0, got {goal_jitter}")
-        self.goal_jitter = float(goal_jitter)
         if not 0 <= recombine_share <= 1 or (recombine_share > 0 and (recombine is None or n_step > 1)):
             raise ValueError(f"recombine_share must be in [0, 1] and needs the recombine function "
                              f"and 1-step rows, got {recombine_share} with n_step {n_step}")
@@ -79,8 +69,6 @@ class HindsightSampler:
             offset = np.floor(rng.random(len(rows)) * (batch["left"][rows] + 1)).astype(np.int64)
             future = (idx[rows] + offset) % b.capacity
             goals = self.achieved(b.data["next_obs"][future])
-            if self.goal_jitter > 0:
-                goals = goals + ball_offsets(rng, goals.shape, self.goal_jitter).astype(goals.dtype)
             self.relabel(batch, rows, goals)
         if self.recombine_share > 0:      # drawn only then: the same batches without it
             joined = np.flatnonzero(rng.random(batch_size) < self.recombine_share)

@@ -39,7 +39,8 @@ and :func:`dualarm.demos.labels.read_labels`): ``demo_00.csv.gz`` ... in the CSV
 format of ``dualarm mocap joints`` (``time`` and ``S_qw..S_qz`` per sensor, six decimals)
 plus two columns ``left_grip, right_grip`` (1 while the hand is closed: the gripper events,
 as a glove, a button or a video annotation would give them; other readers ignore them),
-and ``labels.csv`` (see :mod:`dualarm.demos.labels`). Gzip headers carry no name or
+and ``labels.csv`` (see :mod:`dualarm.demos.labels`), and ``scene.csv``, each demonstration's box
+and target positions (:mod:`dualarm.demos.scene`). Gzip headers carry no name or
 time stamp, so the same arguments give the same bytes.
 """
 
@@ -57,6 +58,7 @@ from scipy.signal import butter, sosfiltfilt
 from dualarm.atomic import atomic_open
 from dualarm.demos.formats import LABELS_NAME, QUAT_DECIMALS, demo_csv_text, gzip_bytes
 from dualarm.demos.labels import labels_csv_text
+from dualarm.demos.scene import SCENE_NAME, Scene, scene_csv_text
 from dualarm.errors import InputError
 from dualarm.kinematics import baxter_arm
 from dualarm.mocap.recording import SENSORS, Recording
@@ -128,6 +130,7 @@ class Demonstration:
         recording: the IMU recording of ``q`` (six sensors, quaternions as written to file).
         expert_q: (steps + 1, 14) the expert's Baxter joint trajectory (rad), at 50 Hz.
         expert_subtasks: (steps, 2) the expert's sub-task per arm after each step.
+        scene: where the boxes stood and their targets were (m, world frame).
     """
 
     name: str
@@ -139,6 +142,7 @@ class Demonstration:
     recording: Recording
     expert_q: np.ndarray = field(repr=False)
     expert_subtasks: np.ndarray = field(repr=False)
+    scene: Scene | None = field(default=None, repr=False)
 
 
 # --------------------------------------------------------------------------- expert episodes
@@ -417,12 +421,14 @@ def generate_demos(count: int = DEFAULT_COUNT, seed: int = DEFAULT_SEED, human: 
             if episode is None:
                 continue
             expert_q, subtasks, grip = episode
+            scene = Scene(boxes=env.box_start.copy(), targets=env.targets.copy())
             name = demo_name(len(demos))
             demo_rng = np.random.default_rng([seed, env_seed])
             time, q, human_grip, windows = human_demonstration(
                 demo_rng, expert_q, subtasks, grip, env.config.control_period, human)
             rec = imu_recording(demo_rng, time, q, human.noise_rad, source=name)
-            demos.append(Demonstration(name, env_seed, time, q, human_grip, windows, rec, expert_q, subtasks))
+            demos.append(Demonstration(name, env_seed, time, q, human_grip, windows, rec, expert_q,
+                                       subtasks, scene))
             if bar is not None:
                 bar.update(1)
     finally:
@@ -433,10 +439,11 @@ def generate_demos(count: int = DEFAULT_COUNT, seed: int = DEFAULT_SEED, human: 
 
 
 def write_demo_set(demos: list[Demonstration], out_dir: str | os.PathLike) -> list[Path]:
-    """Write ``demo_XX.csv.gz`` per demonstration and ``labels.csv``, each atomically.
+    """Write ``demo_XX.csv.gz`` per demonstration, ``labels.csv`` and ``scene.csv`` (when
+    every demonstration has its scene), each atomically.
 
     Returns:
-        the paths written, demonstrations first, labels last.
+        the paths written, demonstrations first, then labels and the scene.
     """
     out = Path(out_dir)
     paths = []
@@ -449,4 +456,9 @@ def write_demo_set(demos: list[Demonstration], out_dir: str | os.PathLike) -> li
     with atomic_open(path) as f:
         f.write(labels_csv_text({d.name: d.windows for d in demos}).encode("utf-8"))
     paths.append(path)
+    if all(d.scene is not None for d in demos):
+        path = out / SCENE_NAME
+        with atomic_open(path) as f:
+            f.write(scene_csv_text({d.name: d.scene for d in demos}).encode("utf-8"))
+        paths.append(path)
     return paths

@@ -14,14 +14,22 @@ from pathlib import Path
 import yaml
 
 from dualarm.errors import InputError
+from dualarm.rl.config import REMOVED_FIELDS as ALGO_REMOVED_FIELDS
 from dualarm.rl.config import DADDPGConfig
-from dualarm.typed_fields import check_field_types
+from dualarm.typed_fields import check_field_types, drop_removed_fields
 from dualarm.yaml_io import read_yaml
 
 #: TaskConfig fields a run may override (the rest keep the task's defaults).
 TASK_OVERRIDES = ("control", "goal", "success_at", "max_episode_steps", "joint_angles_in_obs",
                   "reach_threshold", "terminate_on_success", "coordinate_bonus", "grasp_bonus",
                   "reach_bonus", "guide_c0", "reach_funnel", "reach_funnel_height")
+
+#: Options removed from TrainConfig, with the one value a file may still give (old run
+#: directories keep loading); docs/learning-runs.md names the commit that had each and what
+#: it measured.
+REMOVED_FIELDS = {"reach_action_l2": None, "calm_radius": None, "approach_spread": 0.0,
+                  "held_spread": 0.0, "grasp_spread": 0.0, "grasp_shaping": 0.0,
+                  "early_close_shaping": 0.0, "her_goal_jitter": 0.0}
 
 #: The recipe's learner: DADDPGConfig's own defaults are plain DDPG (the paper's), with these
 #: changes. Each value's reason is in docs/learning-runs.md.
@@ -96,11 +104,6 @@ class TrainConfig:
             boxes, holding them) measure the curriculum's success rates, the way evaluations
             measure success; 0 measures them on the training episodes, whose exploration
             (noise, random actions) can hold a learned class below the threshold for good.
-        reach_action_l2: with ``start_curriculum``: the weight of the action penalty while
-            the curriculum's frontier is the normal start (reach); ``algo.action_l2`` applies
-            while it is later. The penalty that steadies the grasp and the carry also keeps
-            the arms still at home, where the value of moving is far off
-            (docs/learning-runs.md). None: ``algo.action_l2`` throughout.
         far_action_l2: the weight of the action penalty for an arm whose grip site is more
             than ``near_box_radius`` from its box (the observation's box-minus-grip offset);
             ``algo.action_l2`` applies within it. The penalty steadies the grasp and the
@@ -111,38 +114,15 @@ class TrainConfig:
             farther away ``algo.random_eps`` applies. Random steps of up to a full action
             knock a closing grip off its box (docs/learning-runs.md). None:
             ``algo.random_eps`` everywhere.
-        calm_radius: metres; the radius within which ``near_random_eps`` applies, so that
-            the last centimetres of the approach can keep exploring while the grasp is
-            calm. None: ``near_box_radius``.
         near_box_radius: metres; see ``far_action_l2`` and ``near_random_eps``.
         approach_starts: an arm that starts a training episode at reach begins a uniform
             fraction of the way from home to just above its box instead of at home (needs
             ``start_probs``): training starts that cover the approach to the box.
-        approach_spread: metres; the approach starts' line ends at a point drawn uniformly
-            within a horizontal disc of this radius around the point above the box (needs
-            ``approach_starts``): the learner's reach from home fails by closing the hand 2-4
-            cm beside its box (docs/learning-runs.md), and the straight approach
-            starts never begin off the box's axis. 0: straight above the box.
-        held_spread: metres; an arm that starts a training episode holding its box holds it
-            at a point drawn uniformly within a ball of this radius around the one on the way
-            from the box's start to its target (needs ``start_probs`` with a held share): the
-            learner's carry stops 3-5 cm from the target, and the held starts
-            never begin off that line. 0: on the line.
-        grasp_spread: metres; an arm that starts a training episode at its box begins with
-            its open hand within an upper half-ball of this radius around the box's centre,
-            drawn again while a finger pad would touch the box or the table (needs a grasp
-            share in start_probs): the learner's slow seeds stall 2.5-5 cm beside and above
-            their box on the way from home, where no training start puts the hand
-            (docs/learning-runs.md). 0: at the centre.
         her_share: share of every replay batch whose goals are replaced by what the arms
             achieved later in the same episode, rewards recomputed (hindsight experience
             replay, Andrychowicz et al. 2017, "future" goals): the targets by where the
             boxes went, or, in the reach task (``task.success_at: reach``), the boxes by
             where the grip sites went. 0 turns it off.
-        her_goal_jitter: metres; each hindsight goal moved uniformly within a ball of this
-            radius (goal-augmented replay, Lin et al. 2020): the task counts a box within
-            ``align_threshold`` of its target as there, so goals near where the box went are
-            as true as the exact ones. 0: HER's exact goals.
         recombine_share: share of every replay batch whose right arm's half (observation,
             action, reward, next observation) is taken from another row of the batch, the
             coordination bonus and the episode's end computed again for the joined step: the
@@ -162,19 +142,6 @@ class TrainConfig:
             distance term, scaled with rc to 1, is 4,000 times weaker. The box
             rests until grasped, so before the grasp the term is the constant -(1 - gamma) phi.
             Both potentials add. 0 turns it off.
-        grasp_shaping: k, in the learner's reward units: the potential gains +k while an arm
-            holds its box as the grasp sub-task counts it (``GraspRule``: between the closed
-            fingers and lifted ``lift_height``), so that the grasp pays k when it is made and
-            costs k when the box is dropped, where rg2 scaled with rc to 1 pays 0.005 (the
-            grasp is the longest phase of the curriculum, docs/learning-runs.md).
-            Adds to the other potentials. 0 turns it off.
-        early_close_shaping: k, in the learner's reward units: the potential loses k while an
-            arm's fingers count as closed (the task's test) with its grip site farther than
-            ``reach_threshold`` from its box, so closing the hand before the reach costs k at
-            once and opening it again pays k back. The learner's reach from home fails by
-            closing 2-4 cm from the box, a mistake whose cost otherwise shows only through
-            the grasp that then never comes. Adds to the other potentials. 0 turns
-            it off.
         mirror_episodes: store every training episode twice, as it happened and as its mirror
             image (``dualarm.envs.mirror``: the scene reflected left to right, the arms
             swapped, the guide term recomputed for the arm the joints then belong to), so
@@ -206,23 +173,15 @@ class TrainConfig:
     start_probs: tuple[float, float, float] = (0.2, 0.2, 0.6)
     start_curriculum: float = 0.5
     curriculum_probe: int = 32
-    reach_action_l2: float | None = None
     far_action_l2: float | None = 0.002
     near_random_eps: float | None = 0.0
-    calm_radius: float | None = None
     near_box_radius: float = 0.05
     approach_starts: bool = True
-    approach_spread: float = 0.0
-    held_spread: float = 0.0
-    grasp_spread: float = 0.0
     reward_heads: bool = False
     her_share: float = 0.8
-    her_goal_jitter: float = 0.0
     recombine_share: float = 1.0
     approach_shaping: float = 1.0
     carry_shaping: float = 1.0
-    grasp_shaping: float = 0.0
-    early_close_shaping: float = 0.0
     mirror_episodes: bool = True
     demo_episodes: int = 0
     algo: DADDPGConfig = RECIPE_ALGO
@@ -265,36 +224,17 @@ class TrainConfig:
         if self.curriculum_probe and not (self.start_curriculum and self.eval_every):
             raise InputError("curriculum_probe measures the start_curriculum at every evaluation: "
                              "give start_curriculum and eval_every too")
-        if self.reach_action_l2 is not None:
-            if self.reach_action_l2 < 0:
-                raise InputError(f"reach_action_l2 must be >= 0, got {self.reach_action_l2}")
-            if not self.start_curriculum:
-                raise InputError("reach_action_l2 follows the start_curriculum's frontier: "
-                                 "give start_curriculum too")
         if self.far_action_l2 is not None and self.far_action_l2 < 0:
             raise InputError(f"far_action_l2 must be >= 0, got {self.far_action_l2}")
         if self.near_random_eps is not None and not 0 <= self.near_random_eps <= 1:
             raise InputError(f"near_random_eps must be in [0, 1], got {self.near_random_eps}")
-        if self.calm_radius is not None and self.calm_radius <= 0:
-            raise InputError(f"calm_radius must be > 0, got {self.calm_radius}")
-        if self.calm_radius is not None and self.near_random_eps is None:
-            raise InputError("calm_radius is the radius of near_random_eps: set near_random_eps too")
         if self.near_box_radius <= 0:
             raise InputError(f"near_box_radius must be > 0, got {self.near_box_radius}")
         for name in ("start_curriculum", "approach_starts"):
             if getattr(self, name) and not self.uses_start_states:
                 raise InputError(f"{name} moves the start states: give start_probs other "
                                  "than (1, 0, 0), for example [0.2, 0.2, 0.6]")
-        if self.approach_spread < 0 or (self.approach_spread > 0 and not self.approach_starts):
-            raise InputError(f"approach_spread must be >= 0 m and needs approach_starts, got "
-                             f"{self.approach_spread}")
-        if self.held_spread < 0 or (self.held_spread > 0 and self.start_probs[2] == 0):
-            raise InputError(f"held_spread must be >= 0 m and needs a held share in start_probs, "
-                             f"got {self.held_spread}")
-        if self.grasp_spread < 0 or (self.grasp_spread > 0 and self.start_probs[1] == 0):
-            raise InputError(f"grasp_spread must be >= 0 m and needs a grasp share in start_probs, "
-                             f"got {self.grasp_spread}")
-        for name in ("approach_shaping", "carry_shaping", "grasp_shaping", "early_close_shaping"):
+        for name in ("approach_shaping", "carry_shaping"):
             if getattr(self, name) < 0:
                 raise InputError(f"{name} must be >= 0, got {getattr(self, name)}")
         if not 0 <= self.her_share <= 1:
@@ -303,9 +243,6 @@ class TrainConfig:
                 self.algo.n_step > 1 or self.task_config().success_at == "reach")):
             raise InputError(f"recombine_share must be in [0, 1] and works on 1-step rows of the "
                              f"full task (algo.n_step 1), got {self.recombine_share}")
-        if self.her_goal_jitter < 0 or (self.her_goal_jitter > 0 and self.her_share == 0):
-            raise InputError(f"her_goal_jitter must be >= 0 and needs her_share > 0, got "
-                             f"{self.her_goal_jitter} with her_share {self.her_share}")
         if self.checkpoint_minutes <= 0:
             raise InputError(f"checkpoint_minutes must be > 0, got {self.checkpoint_minutes}")
         if self.mirror_episodes and self.condition != "none" and not task.observes_joint_angles:
@@ -322,13 +259,8 @@ class TrainConfig:
                 "near_random_eps": self.near_random_eps is not None,
                 "approach_shaping": self.approach_shaping > 0,
                 "carry_shaping": self.carry_shaping > 0,
-                "grasp_shaping": self.grasp_shaping > 0,
-                "early_close_shaping": self.early_close_shaping > 0,
-                "approach_spread": self.approach_spread > 0, "held_spread": self.held_spread > 0,
                 "recombine_share": self.recombine_share > 0,
-                "grasp_spread": self.grasp_spread > 0,
-                "mirror_episodes": self.mirror_episodes,
-                "algo.grip_hold_eps": self.algo.grip_hold_eps > 0}
+                "mirror_episodes": self.mirror_episodes}
         return [name for name, on in used.items() if on]
 
     @property
@@ -387,6 +319,7 @@ class TrainConfig:
         known = {f.name for f in fields(cls)}
         if not isinstance(d, dict):
             raise InputError(f"{where}: expected a mapping of training settings")
+        d = drop_removed_fields(d, REMOVED_FIELDS, where)
         unknown = sorted(set(d) - known, key=str)
         if unknown:
             raise InputError(f"{where}: unknown field(s) {unknown}; known: {sorted(known)}")
@@ -514,12 +447,12 @@ def _check_layer_fields(d: dict, where: str) -> None:
     """Refuse unknown top-level and ``algo`` field names in one layer of a config file, so
     that a misspelt field in a base is reported under the base's name, not the variant's."""
     known = {f.name for f in fields(TrainConfig)} | {"extends"}
-    unknown = sorted(set(d) - known, key=str)
+    unknown = sorted(set(d) - known - set(REMOVED_FIELDS), key=str)
     if unknown:
         raise InputError(f"{where}: unknown field(s) {unknown}; known: {sorted(known)}")
     if isinstance(d.get("algo"), dict):
         known_algo = {f.name for f in fields(DADDPGConfig)}
-        unknown = sorted(set(d["algo"]) - known_algo, key=str)
+        unknown = sorted(set(d["algo"]) - known_algo - set(ALGO_REMOVED_FIELDS) - {"polyak"}, key=str)
         if unknown:
             raise InputError(f"{where}: algo: unknown DADDPG field(s) {unknown}; "
                              f"known: {sorted(known_algo)}")

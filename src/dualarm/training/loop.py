@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from dualarm.atomic import atomic_copy
-from dualarm.envs.rules import HEAD_TERMS, GraspRule, closed_gap, finger_gap, observation_layout
+from dualarm.envs.rules import HEAD_TERMS, observation_layout
 from dualarm.training.relabel import ReachRelabeller, TargetRelabeller
 from dualarm.envs.mirror import TaskMirror
 from dualarm.errors import DualarmError, InputError
@@ -74,10 +74,7 @@ def make_vector_env(config: TrainConfig, num_envs: int,
     if start:
         probs = tuple(float(k == start) for k in range(len(START_CLASSES)))
     return BaxterVector(config.task_config(), constraints, num_envs, probs,
-                        approach_starts=training and config.approach_starts,
-                        approach_spread=config.approach_spread if training else 0.0,
-                        held_spread=config.held_spread if training else 0.0,
-                        grasp_spread=config.grasp_spread if training else 0.0)
+                        approach_starts=training and config.approach_starts)
 
 
 def box_offset_columns(task) -> slice:
@@ -102,29 +99,18 @@ def approach_potential(obs, rel_columns: slice, k: float):
 def shaping_potential(config: TrainConfig):
     """The run's potential phi(obs) -> (..., A) for raw observations (..., A, O), numpy or
     torch, in the learner's reward units: -``approach_shaping`` x the grip-to-box distance
-    - ``carry_shaping`` x the box-to-target distance (m) + ``grasp_shaping`` x (1 while the
-    arm holds its box as ``GraspRule`` counts the grasp, else 0) - ``early_close_shaping`` x (1
-    while the arm's fingers count as closed farther than ``reach_threshold`` from its box,
-    else 0). None when all are 0."""
-    approach, carry, grasp = config.approach_shaping, config.carry_shaping, config.grasp_shaping
-    early_close = config.early_close_shaping
-    if approach == 0 and carry == 0 and grasp == 0 and early_close == 0:
+    - ``carry_shaping`` x the box-to-target distance (m). None when both are 0."""
+    approach, carry = config.approach_shaping, config.carry_shaping
+    if approach == 0 and carry == 0:
         return None
     task = config.task_config()
     layout = observation_layout(task.observes_joint_angles)
     rel, box, target = layout["object_rel_pos"], layout["object_pos"], layout["target_pos"]
-    fingers, rule = layout["fingers"], GraspRule(task)
-    gap_closed, reach = closed_gap(task), task.reach_threshold
 
     def phi(obs):
         value = approach_potential(obs, rel, approach)
         if carry > 0:
             value = value - carry * ((obs[..., target] - obs[..., box]) ** 2).sum(-1) ** 0.5
-        if grasp > 0:
-            value = value + grasp * rule.held(obs[..., rel], obs[..., fingers], obs[..., box])
-        if early_close > 0:                    # a hand closed before the reach cannot take its box
-            closed = finger_gap(obs[..., fingers]) <= gap_closed
-            value = value - early_close * (closed & (grip_to_box_distance(obs, rel) > reach))
         return value
     return phi
 
@@ -186,15 +172,13 @@ class Trainer:
                 recombine = relabeller.recombine
             self.sampler = HindsightSampler(self.buffer, achieved, relabel, config.her_share,
                                             config.algo.n_step, config.algo.gamma,
-                                            config.her_goal_jitter, recombine,
-                                            config.recombine_share)
+                                            recombine, config.recombine_share)
         self.mirror = TaskMirror(task, constraints) if config.mirror_episodes else None
         self.potential = shaping_potential(config)      # approach_shaping, carry_shaping
-        # far_action_l2, near_random_eps, grip_hold_eps: each arm's box-minus-grip offset
-        # in its observation, (3,) columns
+        # far_action_l2, near_random_eps: each arm's box-minus-grip offset in its observation,
+        # (3,) columns
         self.rel_columns = None
-        if config.far_action_l2 is not None or config.near_random_eps is not None \
-                or config.algo.grip_hold_eps > 0:
+        if config.far_action_l2 is not None or config.near_random_eps is not None:
             self.rel_columns = box_offset_columns(task)
         # Demonstrations are recorded again on resume (the expert and the physics are
         # deterministic); the normaliser's statistics then come from the checkpoint.
@@ -391,37 +375,16 @@ class Trainer:
         phi, phi2 = self.potential(batch["obs"]), self.potential(batch["next_obs"])  # (B, A)
         return gamma * (1.0 - batch["done"]).unsqueeze(-1) * phi2 - phi
 
-    def hold_eps(self, obs: np.ndarray) -> np.ndarray | None:
-        """The chance to start holding a random grip command per copy and arm, (n, A), from
-        observations (n, A, O): ``algo.grip_hold_eps`` farther than ``near_box_radius`` m
-        from the box, 0 nearer, so that no hold starts by opening a hand at or on its box
-        (a hold started farther away runs on into the approach); None when holds are off."""
-        eps = self.config.algo.grip_hold_eps
-        if eps == 0:
-            return None
-        return np.where(self.box_distance(obs) <= self.config.near_box_radius, 0.0, eps)
-
     def random_eps(self, obs: np.ndarray) -> np.ndarray | None:
         """The share of random exploring actions per copy and arm, (n, A), from observations
-        (n, A, O): ``near_random_eps`` where the grip site is within ``calm_radius`` m of
-        its box (``near_box_radius`` when unset), ``algo.random_eps`` farther away; None
-        (the config's everywhere) without ``near_random_eps``."""
+        (n, A, O): ``near_random_eps`` where the grip site is within ``near_box_radius`` m of
+        its box, ``algo.random_eps`` farther away; None (the config's everywhere) without
+        ``near_random_eps``."""
         c = self.config
         if c.near_random_eps is None:
             return None
-        radius = c.near_box_radius if c.calm_radius is None else c.calm_radius
-        near = self.box_distance(obs) <= radius
+        near = self.box_distance(obs) <= c.near_box_radius
         return np.where(near, c.near_random_eps, c.algo.random_eps)
-
-    def scheduled_action_l2(self) -> float:
-        """The action penalty's weight for the next round: ``reach_action_l2`` while the
-        curriculum's frontier is the normal start, else ``algo.action_l2``. A function of the
-        curriculum's (checkpointed) state, so a resumed run continues the same schedule."""
-        c = self.config
-        if c.reach_action_l2 is not None and self.curriculum is not None \
-                and self.curriculum.frontier() == 0:
-            return c.reach_action_l2
-        return c.algo.action_l2
 
     def _crossed(self, before: int, every: int) -> bool:
         return every > 0 and before // every != self.episodes // every
@@ -433,7 +396,6 @@ class Trainer:
         agent.start_episodes(np.arange(v.num_envs) < n)
         if self.curriculum is not None:      # this round's starts, from the episodes so far
             v.set_start_probs(self.curriculum.probs())
-            agent.action_l2 = self.scheduled_action_l2()
         mask = agent.action_mask[:, 0].numpy()
         seen = []
 
@@ -445,8 +407,7 @@ class Trainer:
             if self.env_steps < a.warmup_steps:
                 actions = self.rng.uniform(-1.0, 1.0, (v.num_envs, 2, v.act_size)) * mask
             else:
-                actions = agent.act(obs, self.rng, explore=True, random_eps=self.random_eps(obs),
-                                    hold_eps=self.hold_eps(obs))
+                actions = agent.act(obs, self.rng, explore=True, random_eps=self.random_eps(obs))
             timing["act_s"] += time.perf_counter() - t
             return actions
 
@@ -605,7 +566,7 @@ class Trainer:
             w.add_scalar("train/return_total", float(row["return_total"]), row["episode"])
             w.add_scalar("train/success", row["success"], row["episode"])
         if losses:
-            for key in dict.fromkeys(k for x in losses for k in x):   # actor_loss: some (policy_delay)
+            for key in dict.fromkeys(k for x in losses for k in x):
                 w.add_scalar(f"loss/{key}", float(np.mean([x[key] for x in losses if key in x])),
                              self.episodes)
         w.add_scalar("train/success_rate_100", float(np.mean(self.recent_success)), self.episodes)

@@ -80,13 +80,11 @@ class BaxterVector(VectorEnv):
     has_subtasks = True
 
     def __init__(self, config, constraints=None, num_envs: int = 1, start_probs=None,
-                 approach_starts: bool = False, approach_spread: float = 0.0,
-                 held_spread: float = 0.0, grasp_spread: float = 0.0):
+                 approach_starts: bool = False):
         from dualarm.envs.baxter import BaxterBatch
 
         self.batch = BaxterBatch(config, constraints, num_envs, start_probs=start_probs,
-                                 approach_starts=approach_starts, approach_spread=approach_spread,
-                                 held_spread=held_spread, grasp_spread=grasp_spread)
+                                 approach_starts=approach_starts)
         self.num_envs = num_envs
         self.agents = ARMS
         self.obs_sizes = (self.batch.obs_size,) * 2
