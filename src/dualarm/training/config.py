@@ -369,8 +369,11 @@ class TrainConfig:
         """The config of a YAML file of fields, on top of the recipe; ``extends: BASE`` in it
         starts from another file's fields or a preset's (see :func:`read_config_layers`).
         ``path`` may also be a preset's name (``recipe``, ``paper``)."""
-        if str(path) in PRESETS and not Path(path).exists():
-            return cls.preset(str(path))
+        if not Path(path).exists():
+            if str(path) in PRESETS:
+                return cls.preset(str(path))
+            raise InputError(f"{path}: no such config file; give a YAML file of settings or a "
+                             f"preset ({', '.join(PRESETS)})")
         d, base = read_config_layers(Path(path))
         return cls.from_dict(d, where=str(path), base=cls.preset(base))
 
