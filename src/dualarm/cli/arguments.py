@@ -28,6 +28,26 @@ def positive_int(text: str) -> int:
     return value
 
 
+def pixels(text: str) -> int:
+    """An image side in pixels: an integer in 1..``MAX_PIXELS``."""
+    value = positive_int(text)
+    if value > MAX_PIXELS:
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_PIXELS} pixels, got {text!r}")
+    return value
+
+
+def frame_rate(text: str) -> float:
+    """Frames per second of a video: a finite number in (0, ``MAX_FPS``]."""
+    value = positive(text)
+    if value > MAX_FPS:
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_FPS} frames per second, got {text!r}")
+    return value
+
+
+#: Bounds of the rendering options: the work and the file grow with them.
+MAX_PIXELS, MAX_FPS = 4096, 240
+
+
 def non_negative(text: str) -> float:
     """A finite number >= 0 (seconds, radians, hertz)."""
     value = _number(text)
@@ -66,6 +86,16 @@ class InputPath(_ConcretePath):
 
 class OutputFile(_ConcretePath):
     """A file the command writes (replacing it if it exists)."""
+
+
+class VideoFile(OutputFile):
+    """A video the command writes: ``.mp4`` or ``.gif``, refused before any rendering."""
+
+    def __new__(cls, *args):
+        path = super().__new__(cls, *args)
+        if path.suffix.lower() not in (".mp4", ".gif"):
+            raise argparse.ArgumentTypeError(f"{path}: a video must end in .mp4 or .gif")
+        return path
 
 
 class NewOutput(OutputFile):

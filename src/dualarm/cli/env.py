@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dualarm.cli.arguments import InputPath, OutputFile
+from dualarm.cli.arguments import InputPath, OutputFile, VideoFile, frame_rate, pixels
 from dualarm.task import CONDITIONS
 
 
@@ -91,9 +91,10 @@ def cmd_env_strip(args: argparse.Namespace) -> int:
 
 def frame_options(p: argparse.ArgumentParser) -> None:
     """--camera, --width and --height of commands that render frames."""
-    p.add_argument("--camera", choices=("front", "side"), default="front")
-    p.add_argument("--width", type=int, default=640)
-    p.add_argument("--height", type=int, default=480)
+    p.add_argument("--camera", choices=("front", "side"), default="front",
+                   help="the camera rendering the scene (default: front)")
+    p.add_argument("--width", type=pixels, default=640, help="frame width in pixels (default 640)")
+    p.add_argument("--height", type=pixels, default=480, help="frame height in pixels (default 480)")
 
 
 def with_end_pause(frames: list, fps: float) -> list:
@@ -125,10 +126,11 @@ def add_env_command(sub) -> None:
     task_options(video)
     rendering_options(video)
     video.add_argument("--episodes", type=int, default=2)
-    video.add_argument("--fps", type=float, default=12.0,
+    video.add_argument("--fps", type=frame_rate, default=12.0,
                        help="frames per second of the video; one frame per step, so the default "
                             "plays at 0.24x real time (a step is 20 ms)")
-    video.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.mp4")
+    video.add_argument("-o", "--output", type=VideoFile, required=True, metavar="FILE.mp4|.gif",
+                       help="the video to write")
     video.set_defaults(func=cmd_env_video)
 
     expert = esub.add_parser("expert", help="success rate of the scripted expert",

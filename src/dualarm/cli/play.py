@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from dualarm.cli.arguments import OutputFile, run_options
+from dualarm.cli.arguments import VideoFile, frame_rate, run_options
 from dualarm.cli.env import frame_options, with_end_pause
 
 
@@ -28,8 +28,10 @@ def add_play_command(sub) -> None:
     play = sub.add_parser("play", help="render the learned policy to MP4 or GIF",
                           description="Render one episode of a run's policy.")
     run_options(play)
-    play.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.mp4")
-    play.add_argument("--seed", type=int, default=0)
+    play.add_argument("-o", "--output", type=VideoFile, required=True, metavar="FILE.mp4|.gif",
+                      help="the video to write")
+    play.add_argument("--seed", type=int, default=0, help="the episode's reset seed (default 0)")
     frame_options(play)
-    play.add_argument("--fps", type=float, default=12.0)
+    play.add_argument("--fps", type=frame_rate, default=12.0,
+                      help="frames per second of the video (default 12)")
     play.set_defaults(func=cmd_play)
