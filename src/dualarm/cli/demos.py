@@ -1,4 +1,4 @@
-"""`dualarm demos generate | segment`: demonstration sets, and the options the constraints
+"""`dualarm demos generate | segment | replay`: demonstration sets, and the options the constraints
 commands share with them (demonstration folder, labels, mapping)."""
 
 from __future__ import annotations
@@ -104,6 +104,39 @@ def mapping_options(p: argparse.ArgumentParser) -> None:
                         f"(default: {DEFAULT_LOWPASS_HZ:g})")
 
 
+def cmd_demos_replay(args: argparse.Namespace) -> int:
+    """Replay each recording at its scene in the simulator; print which succeed and why not."""
+    from dualarm.demos.loading import load_demo_dir
+    from dualarm.demos.scene import demo_scenes
+    from dualarm.envs import make_core
+    from dualarm.sim_demos.replay import replay_demonstration
+
+    demo_dir = demo_dir_of(args)
+    demos, labels = load_demo_dir(demo_dir, args.labels, mapping_options_of(args), with_grip=True)
+    env = make_core()
+    scenes = demo_scenes(demo_dir, [d.name for d in demos], env.config.workspace())
+    if args.steps > env.config.max_episode_steps:
+        raise InputError(f"--steps {args.steps}: at most the episode's "
+                         f"{env.config.max_episode_steps} steps")
+    missing = [d.name for d in demos if d.grip is None]
+    if missing:
+        raise InputError(f"recording(s) {', '.join(missing)} have no gripper events (left_grip, "
+                         "right_grip columns): a replay needs them", source=str(demo_dir))
+    wins = 0
+    try:
+        print(f"{'demo':<10} {'success':<7} {'steps':>5} {'tracking, cm (l/r)':>18}  why not")
+        for d in demos:
+            r = replay_demonstration(env, d, labels[d.name], scenes[d.name], steps=args.steps)
+            wins += r.success
+            err = "/".join(f"{100 * e:.1f}" for e in r.tracking_error)
+            print(f"{r.name:<10} {'yes' if r.success else 'no':<7} {r.steps:>5} {err:>18}  {r.why}")
+    finally:
+        env.close()
+    print(f"{wins} of {len(demos)} recordings replay to success at their own scene "
+          f"(task window retimed to {args.steps} steps)")
+    return 0
+
+
 def labels_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--labels", type=InputPath, metavar="FILE.csv",
                    help=f"labels file (demo,arm,subtask,start_s,end_s); default: DEMO_DIR/{LABELS_NAME}")
@@ -111,7 +144,7 @@ def labels_option(p: argparse.ArgumentParser) -> None:
 
 def add_demos_command(sub) -> None:
     """Add the ``demos`` command group to the top-level subparsers."""
-    demos = sub.add_parser("demos", help="demonstration sets: generate, segment",
+    demos = sub.add_parser("demos", help="demonstration sets: generate, segment, replay",
                            description="Demonstration sets of the reach-grasp-align task.")
     dsub = demos.add_subparsers(dest="demos_command", required=True, metavar="COMMAND")
     gen = dsub.add_parser("generate", help="make IMU demonstrations from the scripted expert",
@@ -137,3 +170,18 @@ def add_demos_command(sub) -> None:
     seg.add_argument("--no-grip", action="store_true", help="ignore gripper-event columns")
     seg.add_argument("-o", "--output", type=OutputFile, metavar="FILE.csv", help="write the automatic labels")
     seg.set_defaults(func=cmd_demos_segment)
+
+    from dualarm.sim_demos.replay import DEFAULT_STEPS
+    rep = dsub.add_parser("replay", help="replay each recording at its scene in the simulator",
+                          description="Map each recording to Baxter's joints, retime its task window "
+                                      "to the learner's pace, and follow both hands' paths in the "
+                                      "simulator at the demonstration's own scene (DEMO_DIR/scene.csv), "
+                                      "the grip closed and opened as recorded. Prints which recordings "
+                                      "succeed, and where the others stop.")
+    demo_dir_argument(rep)
+    labels_option(rep)
+    mapping_options(rep)
+    rep.add_argument("--steps", type=positive_int, default=DEFAULT_STEPS,
+                     help=f"steps the task window is retimed to (default: {DEFAULT_STEPS}; an "
+                          "episode is 50)")
+    rep.set_defaults(func=cmd_demos_replay)

@@ -282,12 +282,15 @@ class BaxterBatch:
         self._qvel = np.zeros((n, 2, 8))
 
     # ------------------------------------------------------------------ reset
-    def reset_env(self, i: int, seed: int | None = None) -> tuple[np.ndarray, dict]:
+    def reset_env(self, i: int, seed: int | None = None, placement=None) -> tuple[np.ndarray, dict]:
         """Start an episode in copy ``i``: arms at home, fingers open, boxes and targets at random.
 
         Args:
             i: which copy.
             seed: seeds the episode's random placement (None: continue the copy's stream).
+            placement: boxes and targets to use instead of random ones: anything with
+                ``boxes`` and ``targets``, each (2, 3) m, rows left, right (a demonstration's
+                ``dualarm.demos.scene.Scene``); the boxes rest on the table at their x, y.
 
         Returns:
             (obs (2, obs_size), info) of that copy, as after a step with no reward.
@@ -304,16 +307,21 @@ class BaxterBatch:
         self.joint_command[i] = self.home
 
         r = self.rngs[i]
-        box_x = r.uniform(*c.box_x_range, size=2)
-        box_y = r.uniform(*c.box_y_range, size=2) * np.array([1.0, -1.0])
-        self.box_start_pos[i] = np.stack([box_x, box_y, np.full(2, self.box_rest_z)], axis=1)
+        if placement is None:
+            box_x = r.uniform(*c.box_x_range, size=2)
+            box_y = r.uniform(*c.box_y_range, size=2) * np.array([1.0, -1.0])
+            self.box_start_pos[i] = np.stack([box_x, box_y, np.full(2, self.box_rest_z)], axis=1)
+            tx = r.uniform(*c.target_x_range)
+            ty = r.uniform(*c.target_center_y_range)
+            tz = self.box_rest_z + r.uniform(*c.target_height_range)
+            s = c.target_half_separation
+            self.target_pos[i] = [[tx, ty + s, tz], [tx, ty - s, tz]]
+        else:
+            boxes = np.array(placement.boxes, dtype=float).reshape(2, 3)
+            self.box_start_pos[i] = np.column_stack([boxes[:, :2], np.full(2, self.box_rest_z)])
+            self.target_pos[i] = np.array(placement.targets, dtype=float).reshape(2, 3)
         d.qpos[ix.box_pos] = self.box_start_pos[i]
         d.qpos[ix.box_quat] = [1.0, 0.0, 0.0, 0.0]
-        tx = r.uniform(*c.target_x_range)
-        ty = r.uniform(*c.target_center_y_range)
-        tz = self.box_rest_z + r.uniform(*c.target_height_range)
-        s = c.target_half_separation
-        self.target_pos[i] = [[tx, ty + s, tz], [tx, ty - s, tz]]
         d.mocap_pos[ix.target_mocap] = self.target_pos[i]
         mujoco.mj_kinematics(m, d)
         if self.cartesian:
@@ -493,6 +501,18 @@ class BaxterBatch:
         return StepResult(obs, reward, terminated, truncated, self._info(state, terms, physics_error))
 
     # ------------------------------------------------- replaying joint targets
+    def grip_sites(self, q: np.ndarray) -> np.ndarray:
+        """The grip sites' world positions (T, 2, 3) m for Baxter joint vectors q (T, 14) rad
+        (left s0..w2, then right), by the simulator's own forward kinematics."""
+        q = np.asarray(q, dtype=float).reshape(-1, 14)
+        d = mujoco.MjData(self.model)
+        out = np.empty((len(q), 2, 3))
+        for t, joints in enumerate(q):
+            d.qpos[self.ix.arm_qpos] = joints.reshape(2, 7)
+            mujoco.mj_kinematics(self.model, d)
+            out[t] = d.site_xpos[self.ix.grip_site]
+        return out
+
     def servo_to(self, i: int, joints: np.ndarray, grip: np.ndarray, seconds: float) -> None:
         """Joint control only: hold copy ``i``'s position servos at ``joints`` (2, 7) rad and
         its fingers at closure ``grip`` (2,) (0 open .. 1 closed) for ``seconds`` of
@@ -640,16 +660,17 @@ class BaxterReachGraspAlign(BaxterBatch):
         """Steps taken in the current episode."""
         return int(self.step_count[0])
 
-    def reset(self, seed: int | None = None) -> tuple[np.ndarray, dict]:
+    def reset(self, seed: int | None = None, placement=None) -> tuple[np.ndarray, dict]:
         """Start an episode: arms at home, fingers open, boxes and targets drawn at random.
 
         Args:
             seed: seeds the episode's random placement (None: continue the current stream).
+            placement: boxes and targets instead of random ones (see ``reset_env``).
 
         Returns:
             (obs (2, obs_size), info) as after a step with no reward.
         """
-        return self.reset_env(0, seed)
+        return self.reset_env(0, seed, placement)
 
     def check_action(self, action) -> np.ndarray:
         """Validate and clip an action to (2, action_size) in [-1, 1] (ValueError names the arm)."""

@@ -1,0 +1,138 @@
+"""Human recordings replayed in the simulator as the learner's own episodes (robot
+demonstrations).
+
+A recording, mapped to Baxter's joints with the calibration and mapping the constraints use
+(``dualarm.demos.loading``), is a path of each hand through the person's task. Replayed at its
+own scene (``dualarm.demos.scene``), it becomes an episode of the learner's task, in the
+learner's action space, with the rewards the environment computes:
+
+1. **Retime.** The task window of the recording (the earliest reach start to the latest align
+   end of its labels, about 3-4 s of a person's motion) is sampled at ``steps`` + 1 evenly
+   spaced instants: the person's pace scaled to the robot's (an episode is 50 steps of 20 ms).
+2. **Hand path.** At each instant, both grip sites by the simulator's forward kinematics of the
+   recorded joint angles (``BaxterBatch.grip_sites``), and each hand's gripper event (closed or
+   open) from the recording's grip columns.
+3. **Follow.** In cartesian control, each step commands each grip site towards the path's next
+   point, ``gain`` x the offset in units of the largest step (the scripted expert's rule), and
+   the grip closed or open as recorded; after the path, the last point is held to the end of
+   the episode.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dualarm.demos.labels import DemoLabels
+from dualarm.demos.loading import DemoJoints
+from dualarm.demos.scene import Scene
+from dualarm.task import SUBTASKS
+
+#: Steps of the retimed task window: the expert needs about 25, a learner's episode is 50;
+#: 40 leaves a still hand 5-9 steps to close on its box (the human's grasp phase is a sixth
+#: to a fifth of the task).
+DEFAULT_STEPS = 40
+
+
+@dataclass
+class Replay:
+    """One recording replayed at its scene.
+
+    Attributes:
+        name: the demonstration's name.
+        success: both boxes at their targets within the episode.
+        steps: environment steps taken (to success, or the episode's end).
+        retimed_steps: steps the recording's task window was retimed to.
+        final_subtasks: (2,) each arm's sub-task at the end (0 reach, 1 grasp, 2 align).
+        tracking_error: (2,) m, the largest distance of each grip site from the path's point
+            it was sent to, one step after it was sent there.
+        obs, act, rew, next_obs, done: the episode as the learner stores it: (S, 2, O),
+            (S, 2, 4), (S, 2), (S, 2, O), (S,).
+    """
+
+    name: str
+    success: bool
+    steps: int
+    retimed_steps: int
+    final_subtasks: np.ndarray
+    tracking_error: np.ndarray
+    obs: np.ndarray = field(repr=False)
+    act: np.ndarray = field(repr=False)
+    rew: np.ndarray = field(repr=False)
+    next_obs: np.ndarray = field(repr=False)
+    done: np.ndarray = field(repr=False)
+
+    @property
+    def why(self) -> str:
+        """Where an unsuccessful replay stopped, arm by arm ("" after a success)."""
+        if self.success:
+            return ""
+        names = ("left", "right")
+        return ", ".join(f"{names[a]} arm ended in {SUBTASKS[s]}"
+                         for a, s in enumerate(self.final_subtasks))
+
+
+def task_window(labels: DemoLabels) -> tuple[float, float]:
+    """(start, end) s of a demonstration's task: the earliest reach start, the latest align end."""
+    w = labels.windows
+    return float(w[:, 0, 0].min()), float(w[:, 2, 1].max())
+
+
+def retime(time: np.ndarray, values: np.ndarray, start: float, end: float, steps: int) -> np.ndarray:
+    """``values`` (T, ...) sampled at ``time`` (T,) s, linearly interpolated at ``steps`` + 1
+    evenly spaced instants from ``start`` to ``end`` s: (steps + 1, ...)."""
+    at = np.linspace(start, end, steps + 1)
+    flat = np.asarray(values, dtype=float).reshape(len(time), -1)
+    out = np.stack([np.interp(at, time, flat[:, j]) for j in range(flat.shape[1])], axis=1)
+    return out.reshape((steps + 1,) + np.shape(values)[1:])
+
+
+def replay_demonstration(env, demo: DemoJoints, labels: DemoLabels, scene: Scene,
+                         steps: int = DEFAULT_STEPS, gain: float = 1.5) -> Replay:
+    """Replay one recording at its scene in ``env`` (a ``BaxterReachGraspAlign`` in cartesian
+    control; its condition sets the guide term of the rewards).
+
+    Args:
+        demo: the recording as Baxter joint angles, with its grip events (``with_grip``).
+        labels: its sub-task times (the task window).
+        scene: where its boxes and targets were.
+        steps: steps the task window is retimed to (at most the episode's length).
+        gain: action per metre of offset, in units of the largest step.
+    """
+    if env.config.control != "cartesian":
+        raise ValueError("replay follows the hand path in cartesian control")
+    if demo.grip is None:
+        raise ValueError(f"{demo.source}: replay needs the recording's gripper events "
+                         "(left_grip, right_grip columns)")
+    limit = env.config.max_episode_steps
+    if not 1 <= steps <= limit:
+        raise ValueError(f"steps must be in 1..{limit}, got {steps}")
+    start, end = task_window(labels)
+    q = retime(demo.time, demo.q, start, end, steps)                     # (K + 1, 14)
+    closed = retime(demo.time, demo.grip, start, end, steps) > 0.5       # (K + 1, 2)
+    path = env.grip_sites(q)                                             # (K + 1, 2, 3)
+    obs, info = env.reset(placement=scene)
+    rows = {k: [] for k in ("obs", "act", "rew", "next_obs", "done")}
+    error = np.zeros(2)
+    success = False
+    for k in range(limit):
+        point = path[min(k + 1, steps)]
+        grip_now = env.grip_pos[0]
+        move = gain * (point - grip_now) / env.config.max_cartesian_step
+        command = np.where(closed[min(k + 1, steps)], 1.0, -1.0)
+        action = np.clip(np.concatenate([move, command[:, None]], axis=1), -1.0, 1.0)
+        result = env.step(action)
+        if k < steps:
+            error = np.maximum(error, np.linalg.norm(env.grip_pos[0] - point, axis=-1))
+        done = bool(result.terminated)
+        for key, value in (("obs", obs), ("act", action), ("rew", result.reward),
+                           ("next_obs", result.obs), ("done", float(done))):
+            rows[key].append(np.asarray(value, dtype=float))
+        obs = result.obs
+        success = bool(result.info["is_success"])
+        if done or result.truncated:
+            break
+    return Replay(demo.name, success, len(rows["done"]), steps,
+                  np.asarray(result.info["subtask"]).copy(), error,
+                  *(np.stack(rows[k]) for k in ("obs", "act", "rew", "next_obs", "done")))
