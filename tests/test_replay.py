@@ -82,3 +82,70 @@ def test_the_replay_command_prints_each_recording_and_the_count(capsys):
     assert "recordings replay to success at their own scene" in out and "demo_09" in out
     assert main(["demos", "replay", "--steps", "51"]) == 2
     assert "at most the episode's 50 steps" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- as demonstrations
+
+def _folder_with_scene(tmp_path, shift_x: float, only=None):
+    """A copy of the shipped folder whose boxes are moved ``shift_x`` m (all, or the demos in
+    ``only``)."""
+    import shutil
+
+    folder = tmp_path / "demos"
+    shutil.copytree(DEFAULT_DEMO_DIR, folder)
+    lines = (folder / "scene.csv").read_text().splitlines()
+    out = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        if only is None or cells[0] in only:
+            for col in (1, 4):                                   # left_box_x, right_box_x
+                cells[col] = f"{float(cells[col]) + shift_x:.4f}"
+        out.append(",".join(cells))
+    (folder / "scene.csv").write_text("\n".join(out) + "\n")
+    return folder
+
+
+def test_recordings_fill_the_demonstration_buffer_and_failed_replays_are_named(tmp_path):
+    """The replays that succeed become the buffer's rows, with the run's observation and
+    rewards; a recording whose replay misses its boxes is left out and named; none at all is
+    one error naming the folder."""
+    from dualarm.errors import InputError
+    from dualarm.training import TrainConfig
+    from dualarm.training.demonstrations import record_recording_replays
+
+    config = TrainConfig().with_(condition="none", demos=str(DEFAULT_DEMO_DIR),
+                                 algo=TrainConfig().algo.with_(demo_batch_size=8))
+    buffer = record_recording_replays(config, None)
+    assert 300 < len(buffer) < 500                               # 10 replays of about 36 steps
+    assert buffer.data["done"][:len(buffer)].sum() == 10         # each ends in its success
+    assert buffer.data["obs"].shape[1:] == (2, 36)               # joint angles observed (recipe)
+    lines = []
+    partly = config.with_(demos=str(_folder_with_scene(tmp_path / "a", -0.08, {"demo_03"})))
+    assert len(record_recording_replays(partly, None, log=lines.append)) < len(buffer)
+    assert len(lines) == 1 and "demo_03" in lines[0] and "does not succeed" in lines[0]
+    missed = config.with_(demos=str(_folder_with_scene(tmp_path / "b", -0.08)))
+    with pytest.raises(InputError, match="none of the 10 recordings replays to success"):
+        record_recording_replays(missed, None)
+
+
+def test_demos_options_are_checked_and_the_command_turns_them_on(tmp_path):
+    from dualarm.errors import InputError
+    from dualarm.training import TrainConfig
+    from dualarm.training.config import DEMOS_ALGO
+
+    with pytest.raises(InputError, match="set algo.demo_batch_size"):
+        TrainConfig().with_(demos=str(DEFAULT_DEMO_DIR))
+    algo = TrainConfig().algo.with_(demo_batch_size=8)
+    with pytest.raises(InputError, match="give one"):
+        TrainConfig().with_(demos=str(DEFAULT_DEMO_DIR), demo_episodes=2, algo=algo)
+    with pytest.raises(InputError, match="cartesian control only"):
+        TrainConfig().with_(demos=str(DEFAULT_DEMO_DIR), algo=algo, task={"control": "joint"})
+    (tmp_path / "tiny.yaml").write_text("extends: paper\nnum_envs: 2\neval_every: 0\n"
+                                        "algo: {hidden: [16, 16], batch_size: 16, warmup_steps: 20}\n")
+    out = tmp_path / "run"
+    assert main(["train", "--config", str(tmp_path / "tiny.yaml"), "--condition", "none",
+                 "--episodes", "2", "--demos", str(DEFAULT_DEMO_DIR), "--out", str(out)]) == 0
+    saved = TrainConfig.load_saved(out / "config.yaml")
+    assert saved.demos == str(DEFAULT_DEMO_DIR.resolve())
+    assert saved.algo.demo_batch_size == DEMOS_ALGO["demo_batch_size"]
+    assert saved.algo.bc_weight == DEMOS_ALGO["bc_weight"]

@@ -14,9 +14,11 @@ from dualarm.task import CONDITIONS
 def cmd_train(args: argparse.Namespace) -> int:
     """Start a run (or resume one with --resume) and report where it ended."""
     from dualarm.training import Trainer, TrainConfig
+    from dualarm.training.config import demos_changes
 
     if args.resume:
-        ignored = [name for name in ("condition", "constraints", "seed", "out", "num_envs", "config")
+        ignored = [name for name in ("condition", "constraints", "seed", "out", "num_envs", "config",
+                                     "demos")
                    if getattr(args, name) is not None]
         if ignored:
             print(f"dualarm: note: --resume keeps the run's own settings; ignoring "
@@ -30,6 +32,8 @@ def cmd_train(args: argparse.Namespace) -> int:
                                      ("seed", args.seed), ("num_envs", args.num_envs)) if v is not None}
         if args.constraints is not None:
             changes["constraints"] = str(args.constraints)
+        if args.demos is not None:
+            changes.update(demos_changes(config, args.demos))
         config = config.with_(**changes)
         if config.condition == "none" and config.constraints:
             raise InputError("--constraints needs --condition single or multi")
@@ -75,6 +79,12 @@ def add_train_command(sub) -> None:
                             "(the fields it leaves out take the recipe's, or a preset's with "
                             "`extends: paper`; the options above override them), or a preset: "
                             "recipe (the default, TrainConfig()) or paper (the paper's plain DDPG)")
+    train.add_argument("--demos", type=InputPath, metavar="DIR",
+                       help="a demonstration folder (recordings with gripper events, labels.csv, "
+                            "scene.csv; the shipped set is src/dualarm/data/demos): its recordings, "
+                            "replayed at their own scenes, fill a demonstration buffer with "
+                            "Q-filtered behaviour cloning (the config's algo.demo_batch_size and "
+                            "bc_weight, or DEMOS_ALGO's). Default: none, as in the paper")
     train.add_argument("--resume", type=InputPath, metavar="DIR",
                        help="continue the run in DIR from its last checkpoint")
     train.set_defaults(func=cmd_train)

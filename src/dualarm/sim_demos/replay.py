@@ -49,6 +49,7 @@ class Replay:
             it was sent to, one step after it was sent there.
         obs, act, rew, next_obs, done: the episode as the learner stores it: (S, 2, O),
             (S, 2, 4), (S, 2), (S, 2, O), (S,).
+        terms: the environment's reward terms by name, each (S, 2).
     """
 
     name: str
@@ -62,6 +63,7 @@ class Replay:
     rew: np.ndarray = field(repr=False)
     next_obs: np.ndarray = field(repr=False)
     done: np.ndarray = field(repr=False)
+    terms: dict = field(default_factory=dict, repr=False)
 
     @property
     def why(self) -> str:
@@ -114,6 +116,7 @@ def replay_demonstration(env, demo: DemoJoints, labels: DemoLabels, scene: Scene
     path = env.grip_sites(q)                                             # (K + 1, 2, 3)
     obs, info = env.reset(placement=scene)
     rows = {k: [] for k in ("obs", "act", "rew", "next_obs", "done")}
+    terms: dict[str, list] = {}
     error = np.zeros(2)
     success = False
     for k in range(limit):
@@ -129,10 +132,13 @@ def replay_demonstration(env, demo: DemoJoints, labels: DemoLabels, scene: Scene
         for key, value in (("obs", obs), ("act", action), ("rew", result.reward),
                            ("next_obs", result.obs), ("done", float(done))):
             rows[key].append(np.asarray(value, dtype=float))
+        for name, value in result.info["reward_terms"].items():
+            terms.setdefault(name, []).append(np.asarray(value, dtype=float))
         obs = result.obs
         success = bool(result.info["is_success"])
         if done or result.truncated:
             break
     return Replay(demo.name, success, len(rows["done"]), steps,
                   np.asarray(result.info["subtask"]).copy(), error,
-                  *(np.stack(rows[k]) for k in ("obs", "act", "rew", "next_obs", "done")))
+                  *(np.stack(rows[k]) for k in ("obs", "act", "rew", "next_obs", "done")),
+                  {name: np.stack(v) for name, v in terms.items()})

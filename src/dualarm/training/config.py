@@ -48,6 +48,21 @@ RECIPE_ALGO = DADDPGConfig(
 )
 
 
+#: The learner's use of demonstrations when ``--demos`` is given to a config that draws none:
+#: rows per update from the demonstration buffer, and the weight of Q-filtered behaviour
+#: cloning (Nair et al. 2018) in the actor's loss, on the recipe's value scale (rc = 1).
+DEMOS_ALGO = {"demo_batch_size": 64, "bc_weight": 1.0}
+
+
+def demos_changes(config: "TrainConfig", demo_dir) -> dict:
+    """The changes that make ``config`` learn from the recordings of ``demo_dir``: ``demos``,
+    and ``DEMOS_ALGO`` where the config draws no demonstration rows yet."""
+    changes = {"demos": str(Path(demo_dir).resolve())}
+    if config.algo.demo_batch_size == 0:
+        changes["algo"] = config.algo.with_(**DEMOS_ALGO)
+    return changes
+
+
 def _recipe_task() -> dict:
     return {"joint_angles_in_obs": True}     # every condition observes the joint angles
 
@@ -156,6 +171,11 @@ class TrainConfig:
         demo_episodes: episodes of the scripted expert recorded into a demonstration buffer
             before training (used by ``algo.demo_batch_size`` and ``algo.bc_weight``); 0 for
             none, as in the paper's three conditions. Baxter task, cartesian control only.
+        demos: a demonstration folder (recordings with gripper events, labels.csv and
+            scene.csv) whose recordings, replayed at their own scenes in the run's task
+            (``dualarm.sim_demos.replay``), fill the demonstration buffer that
+            ``algo.demo_batch_size`` and ``algo.bc_weight`` draw from; a replay that does not
+            succeed is left out and named. None: no recordings, as in the paper.
         algo: the DADDPG hyper-parameters.
     """
 
@@ -184,6 +204,7 @@ class TrainConfig:
     carry_shaping: float = 1.0
     mirror_episodes: bool = True
     demo_episodes: int = 0
+    demos: str | None = None
     algo: DADDPGConfig = RECIPE_ALGO
 
     def __post_init__(self):
@@ -207,8 +228,19 @@ class TrainConfig:
             task = self.task_config()
         except InputError as exc:
             raise InputError(f"task: {exc}") from None
-        if self.algo.demo_batch_size > 0 and self.demo_episodes == 0:
-            raise InputError("algo.demo_batch_size > 0 draws from demonstrations: set demo_episodes")
+        if self.algo.demo_batch_size > 0 and self.demo_episodes == 0 and self.demos is None:
+            raise InputError("algo.demo_batch_size > 0 draws from demonstrations: set demos (a "
+                             "demonstration folder) or demo_episodes")
+        if self.demos is not None:
+            if self.demo_episodes:
+                raise InputError("demos and demo_episodes both fill the demonstration buffer: "
+                                 "give one")
+            if task.control != "cartesian":
+                raise InputError("demos: recordings are replayed in cartesian control only, not "
+                                 "task.control 'joint'")
+            if self.algo.demo_batch_size == 0:
+                raise InputError("demos fill the demonstration buffer: set algo.demo_batch_size "
+                                 "(rows drawn from it per update) too")
         if self.demo_episodes and task.control != "cartesian":
             raise InputError("demo_episodes: the scripted expert demonstrates cartesian control "
                              "only, not task.control 'joint'")
@@ -255,6 +287,7 @@ class TrainConfig:
         PettingZoo environment has no scripted expert, start states, targets or reward terms)."""
         used = {"start_probs": self.uses_start_states, "her_share": self.her_share > 0,
                 "reward_heads": self.reward_heads, "demo_episodes": self.demo_episodes > 0,
+                "demos": self.demos is not None,
                 "far_action_l2": self.far_action_l2 is not None,
                 "near_random_eps": self.near_random_eps is not None,
                 "approach_shaping": self.approach_shaping > 0,
@@ -385,9 +418,8 @@ class TrainConfig:
         default resume as they began."""
         path = Path(path)
         d = read_yaml(path, "training config")
-        if isinstance(d, dict) and isinstance(d.get("constraints"), str) \
-                and not Path(d["constraints"]).is_absolute():
-            d = {**d, "constraints": str(path.parent / d["constraints"])}
+        if isinstance(d, dict):
+            d = _resolve_paths(d, path)
         return cls.from_dict(d, where=str(path), base=cls.paper())
 
 
@@ -421,9 +453,7 @@ def read_config_layers(path: Path, seen: tuple[Path, ...] = ()) -> tuple[dict, s
         raise InputError(f"{where}: expected a mapping of training settings")
     _check_layer_fields(d, where)
     d = dict(d)
-    if d.get("constraints") and isinstance(d["constraints"], str) \
-            and not Path(d["constraints"]).is_absolute():
-        d["constraints"] = str(path.parent / d["constraints"])
+    d = _resolve_paths(d, path)
     if "extends" not in d:
         return d, "recipe"
     name = d.pop("extends")
@@ -444,6 +474,19 @@ def read_config_layers(path: Path, seen: tuple[Path, ...] = ()) -> tuple[dict, s
         if isinstance(base.get(name_), dict) and isinstance(d.get(name_), dict):
             d[name_] = {**base[name_], **d[name_]}
     return {**base, **d}, preset
+
+
+#: Fields that name files or folders: a relative one is relative to the config file that gives it.
+PATH_FIELDS = ("constraints", "demos")
+
+
+def _resolve_paths(d: dict, path: Path) -> dict:
+    """``d`` with its relative ``PATH_FIELDS`` made relative to ``path``'s folder."""
+    d = dict(d)
+    for name in PATH_FIELDS:
+        if d.get(name) and isinstance(d[name], str) and not Path(d[name]).is_absolute():
+            d[name] = str(path.parent / d[name])
+    return d
 
 
 def _check_layer_fields(d: dict, where: str) -> None:

@@ -39,3 +39,57 @@ def record_expert_demonstrations(config: TrainConfig, vec: VectorEnv, reward_of=
 
     evaluate(act, vec, config.demo_episodes, DEMO_SEED_BASE + config.seed, on_step=store)
     return buffer
+
+
+def record_recording_replays(config: TrainConfig, constraints, head_terms=None,
+                             log=None) -> ReplayBuffer:
+    """Replay the recordings of ``config.demos`` at their own scenes in the run's task
+    (condition, constraints and observation as training's; ``dualarm.sim_demos.replay``) and
+    return the transitions of those that succeed, rewards whole (N, 2) or, with
+    ``head_terms`` (the trainer's reward heads), split (N, 2, heads) as training stores them.
+
+    Args:
+        log: called with one line per recording left out (its replay did not succeed).
+
+    Raises:
+        InputError: the folder, its labels or its scene are missing or bad, or no recording
+            replays to success.
+    """
+    from dualarm.demos.loading import load_demo_dir
+    from dualarm.demos.scene import demo_scenes
+    from dualarm.envs.baxter import BaxterReachGraspAlign
+    from dualarm.errors import InputError
+    from dualarm.sim_demos.replay import replay_demonstration
+
+    task = config.task_config()
+    demos, labels = load_demo_dir(config.demos, with_grip=True)
+    scenes = demo_scenes(config.demos, [d.name for d in demos], task.workspace())
+    env = BaxterReachGraspAlign(task, constraints)
+    try:
+        kept, left_out = [], []
+        for d in demos:
+            if d.grip is None:
+                left_out.append(f"{d.source}: no gripper events (left_grip, right_grip columns)")
+                continue
+            r = replay_demonstration(env, d, labels[d.name], scenes[d.name])
+            if not r.success:
+                left_out.append(f"{d.source}: its replay at its scene does not succeed ({r.why})")
+                continue
+            rew = r.rew if head_terms is None else \
+                np.stack([sum(r.terms[t] for t in names) for names in head_terms], axis=-1)
+            kept.append({"obs": r.obs, "act": r.act, "rew": rew, "next_obs": r.next_obs,
+                         "done": r.done})
+    finally:
+        env.close()
+    for line in left_out:
+        if log is not None:
+            log(f"demos: left out {line}")
+    if not kept:
+        raise InputError(f"none of the {len(demos)} recordings replays to success at its scene "
+                         "(`dualarm demos replay` shows where each stops)", source=str(config.demos))
+    rows = sum(len(e["done"]) for e in kept)
+    reward_size = 1 if head_terms is None else len(head_terms)
+    buffer = ReplayBuffer(rows, 2, env.obs_size, env.action_size, reward_size)
+    for e in kept:
+        buffer.add(e["obs"], e["act"], e["rew"], e["next_obs"], e["done"])
+    return buffer

@@ -32,7 +32,7 @@ from dualarm.rl.her import HindsightSampler
 from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import TrainConfig
 from dualarm.training.curriculum import START_CLASSES, ReverseCurriculum
-from dualarm.training.demonstrations import record_expert_demonstrations
+from dualarm.training.demonstrations import record_expert_demonstrations, record_recording_replays
 from dualarm.training.evaluation import evaluate
 from dualarm.training.rounds import run_round
 from dualarm.training.run_dir import (AVERAGE_EVAL_COLUMNS, EVAL_COLUMNS, CheckpointError, CsvLog,
@@ -183,6 +183,10 @@ class Trainer:
         # Demonstrations are recorded again on resume (the expert and the physics are
         # deterministic); the normaliser's statistics then come from the checkpoint.
         self.demos = None
+        if config.demos is not None:
+            self.demos = record_recording_replays(config, constraints, self.head_terms,
+                                                  log=lambda line: print(line, file=sys.stderr))
+            self.agent.normalizer.update(self.demos.data["obs"][:len(self.demos)])
         if config.demo_episodes:
             self.demos = record_expert_demonstrations(config, v, self.reward_of,
                                                       self.agent.num_heads)
