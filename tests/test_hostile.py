@@ -92,6 +92,8 @@ CASES = [
     Case("config-not-yaml", "train --config bad.yaml --out r", "YAML syntax error at line 2", config("episodes: [\n")),
     Case("config-not-utf8", "train --config bad.yaml --out r", "bad.yaml", config(b"episodes: \xff\xfe\n")),
     Case("config-missing", "train --config nope.yaml --out r", "nope.yaml"),
+    Case("train-seed-negative", "train --seed -1 --out r", "seed must be in 0..4294967295"),
+    Case("train-seed-huge", "train --seed 18446744073709551616 --out r", "seed must be in 0.."),
     Case("video-extension", "env video -o v.avi", "a video must end in .mp4 or .gif"),
     Case("video-width-zero", "env video --width 0 -o v.mp4", "--width: must be at least 1"),
     Case("video-height-huge", "env video --height 100000 -o v.mp4", "at most 4096 pixels"),

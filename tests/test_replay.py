@@ -133,8 +133,9 @@ def test_demos_options_are_checked_and_the_command_turns_them_on(tmp_path):
     from dualarm.training import TrainConfig
     from dualarm.training.config import DEMOS_ALGO
 
-    with pytest.raises(InputError, match="set algo.demo_batch_size"):
-        TrainConfig().with_(demos=str(DEFAULT_DEMO_DIR))
+    drawn = TrainConfig().with_(demos=str(DEFAULT_DEMO_DIR))      # no demonstration rows set
+    assert drawn.algo.demo_batch_size == DEMOS_ALGO["demo_batch_size"]
+    assert TrainConfig.from_dict(drawn.to_dict()) == drawn
     algo = TrainConfig().algo.with_(demo_batch_size=8)
     with pytest.raises(InputError, match="give one"):
         TrainConfig().with_(demos=str(DEFAULT_DEMO_DIR), demo_episodes=2, algo=algo)

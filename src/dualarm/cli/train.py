@@ -14,7 +14,6 @@ from dualarm.task import CONDITIONS
 def cmd_train(args: argparse.Namespace) -> int:
     """Start a run (or resume one with --resume) and report where it ended."""
     from dualarm.training import Trainer, TrainConfig
-    from dualarm.training.config import demos_changes
 
     if args.resume:
         ignored = [name for name in ("condition", "constraints", "seed", "out", "num_envs", "config",
@@ -27,14 +26,15 @@ def cmd_train(args: argparse.Namespace) -> int:
         print(f"resuming {args.resume} at episode {trainer.episodes} of {trainer.config.episodes}",
               file=sys.stderr)
     else:
-        config = TrainConfig.load(args.config) if args.config else TrainConfig()
         changes = {k: v for k, v in (("condition", args.condition), ("episodes", args.episodes),
                                      ("seed", args.seed), ("num_envs", args.num_envs)) if v is not None}
         if args.constraints is not None:
             changes["constraints"] = str(args.constraints)
         if args.demos is not None:
-            changes.update(demos_changes(config, args.demos))
-        config = config.with_(**changes)
+            changes["demos"] = str(Path(args.demos).resolve())
+        # the command line's options complete the file's before the whole is checked
+        config = TrainConfig.load(args.config, changes) if args.config else \
+            TrainConfig.from_dict(changes, where="the command line")
         if config.condition == "none" and config.constraints:
             raise InputError("--constraints needs --condition single or multi")
         out = args.out or Path("runs") / f"{config.condition}-seed{config.seed}"

@@ -19,6 +19,9 @@ from dualarm.rl.config import DADDPGConfig
 from dualarm.typed_fields import check_field_types, drop_removed_fields
 from dualarm.yaml_io import read_yaml
 
+#: The largest seed of a run (and of a comparison's runs).
+MAX_SEED = 2 ** 32 - 1
+
 #: TaskConfig fields a run may override (the rest keep the task's defaults).
 TASK_OVERRIDES = ("control", "goal", "success_at", "max_episode_steps", "joint_angles_in_obs",
                   "reach_threshold", "terminate_on_success", "coordinate_bonus", "grasp_bonus",
@@ -48,19 +51,10 @@ RECIPE_ALGO = DADDPGConfig(
 )
 
 
-#: The learner's use of demonstrations when ``--demos`` is given to a config that draws none:
+#: The learner's use of demonstrations when ``demos`` is given to a config that draws none:
 #: rows per update from the demonstration buffer, and the weight of Q-filtered behaviour
 #: cloning (Nair et al. 2018) in the actor's loss, on the recipe's value scale (rc = 1).
 DEMOS_ALGO = {"demo_batch_size": 64, "bc_weight": 1.0}
-
-
-def demos_changes(config: "TrainConfig", demo_dir) -> dict:
-    """The changes that make ``config`` learn from the recordings of ``demo_dir``: ``demos``,
-    and ``DEMOS_ALGO`` where the config draws no demonstration rows yet."""
-    changes = {"demos": str(Path(demo_dir).resolve())}
-    if config.algo.demo_batch_size == 0:
-        changes["algo"] = config.algo.with_(**DEMOS_ALGO)
-    return changes
 
 
 def _recipe_task() -> dict:
@@ -174,8 +168,9 @@ class TrainConfig:
         demos: a demonstration folder (recordings with gripper events, labels.csv and
             scene.csv) whose recordings, replayed at their own scenes in the run's task
             (``dualarm.sim_demos.replay``), fill the demonstration buffer that
-            ``algo.demo_batch_size`` and ``algo.bc_weight`` draw from; a replay that does not
-            succeed is left out and named. None: no recordings, as in the paper.
+            ``algo.demo_batch_size`` and ``algo.bc_weight`` draw from (``DEMOS_ALGO``'s where
+            the algo draws no demonstration rows); a replay that does not succeed is left out
+            and named. None: no recordings, as in the paper.
         algo: the DADDPG hyper-parameters.
     """
 
@@ -215,12 +210,16 @@ class TrainConfig:
         unknown = sorted(set(self.task) - set(TASK_OVERRIDES), key=str)
         if unknown:
             raise InputError(f"task overrides {unknown} are not supported; allowed: {TASK_OVERRIDES}")
+        if self.demos is not None and self.algo.demo_batch_size == 0:   # demos drawn as DEMOS_ALGO
+            object.__setattr__(self, "algo", self.algo.with_(**DEMOS_ALGO))
         # an override that gives the task's own default is no override: one config, one value
         object.__setattr__(self, "task", {k: v for k, v in self.task.items()
                                           if not _is_task_default(k, v)})
         for name in ("episodes", "num_envs", "torch_threads"):
             if getattr(self, name) < 1:
                 raise InputError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if not 0 <= self.seed <= MAX_SEED:            # numpy's seeds are unsigned 32-bit here
+            raise InputError(f"seed must be in 0..{MAX_SEED}, got {self.seed}")
         for name in ("eval_every", "eval_episodes", "checkpoint_every", "demo_episodes"):
             if getattr(self, name) < 0:
                 raise InputError(f"{name} must be >= 0, got {getattr(self, name)}")
@@ -238,9 +237,6 @@ class TrainConfig:
             if task.control != "cartesian":
                 raise InputError("demos: recordings are replayed in cartesian control only, not "
                                  "task.control 'joint'")
-            if self.algo.demo_batch_size == 0:
-                raise InputError("demos fill the demonstration buffer: set algo.demo_batch_size "
-                                 "(rows drawn from it per update) too")
         if self.demo_episodes and task.control != "cartesian":
             raise InputError("demo_episodes: the scripted expert demonstrates cartesian control "
                              "only, not task.control 'joint'")
@@ -398,17 +394,19 @@ class TrainConfig:
         return cls.paper() if name == "paper" else cls.recipe()
 
     @classmethod
-    def load(cls, path: str | Path) -> "TrainConfig":
+    def load(cls, path: str | Path, changes: dict | None = None) -> "TrainConfig":
         """The config of a YAML file of fields, on top of the recipe; ``extends: BASE`` in it
         starts from another file's fields or a preset's (see :func:`read_config_layers`).
-        ``path`` may also be a preset's name (``recipe``, ``paper``)."""
+        ``path`` may also be a preset's name (``recipe``, ``paper``). ``changes`` (fields, as
+        the command line gives them) replace the file's before the whole is checked."""
+        changes = changes or {}
         if not Path(path).exists():
             if str(path) in PRESETS:
-                return cls.preset(str(path))
+                return cls.from_dict(changes, where=str(path), base=cls.preset(str(path)))
             raise InputError(f"{path}: no such config file; give a YAML file of settings or a "
                              f"preset ({', '.join(PRESETS)})")
         d, base = read_config_layers(Path(path))
-        return cls.from_dict(d, where=str(path), base=cls.preset(base))
+        return cls.from_dict({**d, **changes}, where=str(path), base=cls.preset(base))
 
     @classmethod
     def load_saved(cls, path: str | Path) -> "TrainConfig":
