@@ -43,7 +43,7 @@ def add_report_command(sub) -> None:
         description="Read the training run directories under DIR (config.yaml + metrics.csv, "
                     "up to two levels deep) and write the average return (Fig. 6), success "
                     "(Fig. 7) and time-to-convergence (Fig. 8) figures, table.md, table.csv "
-                    "and index.html, with mean and 95%% confidence interval over seeds and the "
+                    "and index.html, with mean and 95 % confidence interval over seeds and the "
                     "paper's values beside them.")
     report.add_argument("dir", type=InputPath, metavar="DIR", help="comparison directory")
     report.add_argument("-o", "--output", type=OutputDir, metavar="OUT",
