@@ -7,17 +7,16 @@ import pytest
 
 from dualarm.cli.main import main
 from dualarm.demos.formats import DEFAULT_DEMO_DIR
-from dualarm.demos.loading import load_demo_dir
-from dualarm.demos.scene import Scene, demo_scenes
+from dualarm.demos.scene import Scene
 from dualarm.envs import make_core
-from dualarm.sim_demos.replay import DEFAULT_STEPS, replay_demonstration, retime, task_window
+from dualarm.sim_demos.replay import (DEFAULT_STEPS, load_replay_folder, replay_demonstration,
+                                      retime, task_window)
 
 
 @pytest.fixture(scope="module")
 def shipped():
     env = make_core()
-    demos, labels = load_demo_dir(DEFAULT_DEMO_DIR, with_grip=True)
-    scenes = demo_scenes(DEFAULT_DEMO_DIR, [d.name for d in demos], env.config.workspace())
+    demos, labels, scenes = load_replay_folder(DEFAULT_DEMO_DIR, env.config.workspace())
     yield env, demos, labels, scenes
     env.close()
 

@@ -106,15 +106,13 @@ def mapping_options(p: argparse.ArgumentParser) -> None:
 
 def cmd_demos_replay(args: argparse.Namespace) -> int:
     """Replay each recording at its scene in the simulator; print which succeed and why not."""
-    from dualarm.demos.loading import load_demo_dir
-    from dualarm.demos.scene import demo_scenes
     from dualarm.envs import make_core
-    from dualarm.sim_demos.replay import replay_demonstration
+    from dualarm.sim_demos.replay import load_replay_folder, replay_demonstration
 
     demo_dir = demo_dir_of(args)
-    demos, labels = load_demo_dir(demo_dir, args.labels, mapping_options_of(args), with_grip=True)
     env = make_core()
-    scenes = demo_scenes(demo_dir, [d.name for d in demos], env.config.workspace())
+    demos, labels, scenes = load_replay_folder(demo_dir, env.config.workspace(), args.labels,
+                                               mapping_options_of(args))
     if args.steps > env.config.max_episode_steps:
         raise InputError(f"--steps {args.steps}: at most the episode's "
                          f"{env.config.max_episode_steps} steps")

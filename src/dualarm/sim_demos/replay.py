@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dualarm.demos.labels import DemoLabels
-from dualarm.demos.loading import DemoJoints
-from dualarm.demos.scene import Scene
+from dualarm.demos.loading import DemoJoints, MappingOptions, load_demo_dir
+from dualarm.demos.scene import Scene, Workspace, demo_scenes
 from dualarm.task import SUBTASKS
 
 #: Steps of the retimed task window: the expert needs about 25, a learner's episode is 50;
@@ -73,6 +73,21 @@ class Replay:
         names = ("left", "right")
         return ", ".join(f"{names[a]} arm ended in {SUBTASKS[s]}"
                          for a, s in enumerate(self.final_subtasks))
+
+
+def load_replay_folder(demo_dir, workspace: Workspace, labels_path=None,
+                       options: MappingOptions = MappingOptions()
+                       ) -> tuple[list[DemoJoints], dict[str, DemoLabels], dict[str, Scene]]:
+    """What replaying a demonstration folder needs: its recordings as Baxter joint angles with
+    their gripper events, their labels and their scenes (``workspace``: where a scene may
+    place things, ``TaskConfig.workspace()``).
+
+    Raises:
+        InputError: the folder, its labels or its scene are missing or bad (naming the file).
+    """
+    demos, labels = load_demo_dir(demo_dir, labels_path, options, with_grip=True)
+    scenes = demo_scenes(demo_dir, [d.name for d in demos], workspace)
+    return demos, labels, scenes
 
 
 def task_window(labels: DemoLabels) -> tuple[float, float]:

@@ -8,6 +8,7 @@ baseline (``--config paper``), which does not learn the full task.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
@@ -61,17 +62,23 @@ def _recipe_task() -> dict:
     return {"joint_angles_in_obs": True}     # every condition observes the joint angles
 
 
+@functools.cache
+def _task_field_defaults() -> dict:
+    """TaskConfig's own value of each of its fields with a plain default."""
+    from dualarm.envs.config import TaskConfig
+
+    return {f.name: f.default for f in fields(TaskConfig)}
+
+
 def _task_defaults(names) -> dict:
     """TaskConfig's own values of the fields ``names``: ``to_dict`` writes them for the keys
     the recipe's task sets, so that a file's ``task`` merged onto the recipe's (``from_dict``)
     gives back the same config."""
-    from dualarm.envs.config import TaskConfig
-
-    return {f.name: f.default for f in fields(TaskConfig) if f.name in names}
+    return {name: value for name, value in _task_field_defaults().items() if name in names}
 
 
 def _is_task_default(name: str, value) -> bool:
-    default = _task_defaults((name,)).get(name, object())
+    default = _task_field_defaults().get(name, object())
     if isinstance(value, list):
         value = tuple(value)
     return type(value) is type(default) and value == default    # 1 is not True: checked later
@@ -352,9 +359,10 @@ class TrainConfig:
         unknown = sorted(set(d) - known, key=str)
         if unknown:
             raise InputError(f"{where}: unknown field(s) {unknown}; known: {sorted(known)}")
-        d = {**base.to_dict(), **d}
-        if isinstance(d["task"], dict) and base.task:
-            d["task"] = {**base.to_dict()["task"], **d["task"]}
+        base_fields = base.to_dict()
+        d = {**base_fields, **d}
+        if isinstance(d["task"], dict):
+            d["task"] = {**base_fields["task"], **d["task"]}
         d["algo"] = DADDPGConfig.from_dict(d["algo"] or {}, where=f"{where}: algo", base=base.algo)
         try:
             return cls(**d)

@@ -16,6 +16,15 @@ from dualarm.training.vector import VectorEnv
 DEMO_SEED_BASE = 1_000_003
 
 
+def stored_reward(reward: np.ndarray, terms: dict, head_terms=None) -> np.ndarray:
+    """What the replay stores of steps' rewards (n, A): the rewards themselves, or with
+    ``head_terms`` (the reward heads, e.g. ``HEAD_TERMS``) the sum of each head's named terms
+    (each (n, A)), stacked (n, A, heads)."""
+    if head_terms is None:
+        return reward
+    return np.stack([sum(terms[t] for t in names) for names in head_terms], axis=-1)
+
+
 def record_expert_demonstrations(config: TrainConfig, vec: VectorEnv, reward_of=None,
                                  reward_size: int = 1) -> ReplayBuffer:
     """Run ``config.demo_episodes`` episodes of ``ScriptedExpert`` in ``vec`` (the run's
@@ -55,15 +64,12 @@ def record_recording_replays(config: TrainConfig, constraints, head_terms=None,
         InputError: the folder, its labels or its scene are missing or bad, or no recording
             replays to success.
     """
-    from dualarm.demos.loading import load_demo_dir
-    from dualarm.demos.scene import demo_scenes
     from dualarm.envs.baxter import BaxterReachGraspAlign
     from dualarm.errors import InputError
-    from dualarm.sim_demos.replay import replay_demonstration
+    from dualarm.sim_demos.replay import load_replay_folder, replay_demonstration
 
     task = config.task_config()
-    demos, labels = load_demo_dir(config.demos, with_grip=True)
-    scenes = demo_scenes(config.demos, [d.name for d in demos], task.workspace())
+    demos, labels, scenes = load_replay_folder(config.demos, task.workspace())
     env = BaxterReachGraspAlign(task, constraints)
     try:
         kept, left_out = [], []
@@ -75,10 +81,8 @@ def record_recording_replays(config: TrainConfig, constraints, head_terms=None,
             if not r.success:
                 left_out.append(f"{d.source}: its replay at its scene does not succeed ({r.why})")
                 continue
-            rew = r.rew if head_terms is None else \
-                np.stack([sum(r.terms[t] for t in names) for names in head_terms], axis=-1)
-            kept.append({"obs": r.obs, "act": r.act, "rew": rew, "next_obs": r.next_obs,
-                         "done": r.done})
+            kept.append({"obs": r.obs, "act": r.act, "rew": stored_reward(r.rew, r.terms, head_terms),
+                         "next_obs": r.next_obs, "done": r.done})
     finally:
         env.close()
     for line in left_out:

@@ -32,7 +32,8 @@ from dualarm.rl.her import HindsightSampler
 from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import TrainConfig
 from dualarm.training.curriculum import START_CLASSES, ReverseCurriculum
-from dualarm.training.demonstrations import record_expert_demonstrations, record_recording_replays
+from dualarm.training.demonstrations import (record_expert_demonstrations, record_recording_replays,
+                                             stored_reward)
 from dualarm.training.evaluation import evaluate
 from dualarm.training.rounds import run_round
 from dualarm.training.run_dir import (AVERAGE_EVAL_COLUMNS, EVAL_COLUMNS, CheckpointError, CsvLog,
@@ -186,10 +187,10 @@ class Trainer:
         if config.demos is not None:
             self.demos = record_recording_replays(config, constraints, self.head_terms,
                                                   log=lambda line: print(line, file=sys.stderr))
-            self.agent.normalizer.update(self.demos.data["obs"][:len(self.demos)])
         if config.demo_episodes:
             self.demos = record_expert_demonstrations(config, v, self.reward_of,
                                                       self.agent.num_heads)
+        if self.demos is not None:
             self.agent.normalizer.update(self.demos.data["obs"][:len(self.demos)])
         self.curriculum = None
         self.probe_vecs = None       # curriculum_probe's copies, made at the first probe
@@ -486,9 +487,7 @@ class Trainer:
 
     def reward_of(self, step) -> np.ndarray:
         """What the replay stores of a step's reward: (n, A), or (n, A, heads) split by term."""
-        if self.head_terms is None:
-            return step.reward
-        return np.stack([sum(step.terms[t] for t in terms) for terms in self.head_terms], axis=-1)
+        return stored_reward(step.reward, step.terms, self.head_terms)
 
     def _update(self, round_steps: int) -> list[dict]:
         """The round's share of gradient updates (none during warm-up)."""
