@@ -136,8 +136,12 @@ def test_demos_options_are_checked_and_the_command_turns_them_on(tmp_path):
     assert drawn.algo.demo_batch_size == DEMOS_ALGO["demo_batch_size"]
     assert TrainConfig.from_dict(drawn.to_dict()) == drawn
     algo = TrainConfig().algo.with_(demo_batch_size=8)
-    with pytest.raises(InputError, match="give one"):
-        TrainConfig().with_(demos=str(DEFAULT_DEMO_DIR), demo_episodes=2, algo=algo)
+    from dualarm.training.demonstrations import record_recording_replays
+    moved = TrainConfig().with_(condition="none", demos=str(DEFAULT_DEMO_DIR), demo_episodes=3)
+    lines = []
+    buffer = record_recording_replays(moved, None, log=lines.append)
+    assert buffer.data["done"][:len(buffer)].sum() == 10 + 3          # own scenes + moved
+    assert lines == ["demos: 3 of 3 recordings moved to new placements succeed"]
     with pytest.raises(InputError, match="cartesian control only"):
         TrainConfig().with_(demos=str(DEFAULT_DEMO_DIR), algo=algo, task={"control": "joint"})
     (tmp_path / "tiny.yaml").write_text("extends: paper\nnum_envs: 2\neval_every: 0\n"

@@ -105,6 +105,27 @@ def retime(time: np.ndarray, values: np.ndarray, start: float, end: float, steps
     return out.reshape((steps + 1,) + np.shape(values)[1:])
 
 
+def demonstration_path(env, demo: DemoJoints, labels: DemoLabels,
+                       steps: int = DEFAULT_STEPS) -> tuple[np.ndarray, np.ndarray]:
+    """A recording's hands as the robot would follow them: its task window retimed to
+    ``steps`` steps, then both grip sites by ``env``'s forward kinematics of the recorded joints.
+
+    Returns:
+        path: (steps + 1, 2, 3) m, each arm's grip site at each retimed instant (world frame).
+        closed: (steps + 1, 2) bool, each hand's gripper closed at that instant.
+    """
+    if demo.grip is None:
+        raise ValueError(f"{demo.source}: replay needs the recording's gripper events "
+                         "(left_grip, right_grip columns)")
+    limit = env.config.max_episode_steps
+    if not 1 <= steps <= limit:
+        raise ValueError(f"steps must be in 1..{limit}, got {steps}")
+    start, end = task_window(labels)
+    q = retime(demo.time, demo.q, start, end, steps)                     # (K + 1, 14)
+    closed = retime(demo.time, demo.grip, start, end, steps) > 0.5       # (K + 1, 2)
+    return env.grip_sites(q), closed
+
+
 def replay_demonstration(env, demo: DemoJoints, labels: DemoLabels, scene: Scene,
                          steps: int = DEFAULT_STEPS, gain: float = 1.5) -> Replay:
     """Replay one recording at its scene in ``env`` (a ``BaxterReachGraspAlign`` in cartesian
@@ -119,16 +140,17 @@ def replay_demonstration(env, demo: DemoJoints, labels: DemoLabels, scene: Scene
     """
     if env.config.control != "cartesian":
         raise ValueError("replay follows the hand path in cartesian control")
-    if demo.grip is None:
-        raise ValueError(f"{demo.source}: replay needs the recording's gripper events "
-                         "(left_grip, right_grip columns)")
+    path, closed = demonstration_path(env, demo, labels, steps)
+    return follow_path(env, demo.name, path, closed, scene, gain)
+
+
+def follow_path(env, name: str, path: np.ndarray, closed: np.ndarray, scene: Scene,
+                gain: float = 1.5) -> Replay:
+    """One episode of ``env`` (cartesian control) at ``scene`` that sends both grip sites along
+    ``path`` (K + 1, 2, 3) m, one point per step, with the grippers ``closed`` (K + 1, 2) as
+    given, then holds the last point to the episode's end. The episode is ``name``'s."""
+    steps = len(path) - 1
     limit = env.config.max_episode_steps
-    if not 1 <= steps <= limit:
-        raise ValueError(f"steps must be in 1..{limit}, got {steps}")
-    start, end = task_window(labels)
-    q = retime(demo.time, demo.q, start, end, steps)                     # (K + 1, 14)
-    closed = retime(demo.time, demo.grip, start, end, steps) > 0.5       # (K + 1, 2)
-    path = env.grip_sites(q)                                             # (K + 1, 2, 3)
     obs, info = env.reset(placement=scene)
     rows = {k: [] for k in ("obs", "act", "rew", "next_obs", "done")}
     terms: dict[str, list] = {}
@@ -147,13 +169,13 @@ def replay_demonstration(env, demo: DemoJoints, labels: DemoLabels, scene: Scene
         for key, value in (("obs", obs), ("act", action), ("rew", result.reward),
                            ("next_obs", result.obs), ("done", float(done))):
             rows[key].append(np.asarray(value, dtype=float))
-        for name, value in result.info["reward_terms"].items():
-            terms.setdefault(name, []).append(np.asarray(value, dtype=float))
+        for term, value in result.info["reward_terms"].items():
+            terms.setdefault(term, []).append(np.asarray(value, dtype=float))
         obs = result.obs
         success = bool(result.info["is_success"])
         if done or result.truncated:
             break
-    return Replay(demo.name, success, len(rows["done"]), steps,
+    return Replay(name, success, len(rows["done"]), steps,
                   np.asarray(result.info["subtask"]).copy(), error,
                   *(np.stack(rows[k]) for k in ("obs", "act", "rew", "next_obs", "done")),
-                  {name: np.stack(v) for name, v in terms.items()})
+                  {term: np.stack(v) for term, v in terms.items()})

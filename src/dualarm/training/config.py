@@ -169,9 +169,12 @@ class TrainConfig:
             terms (distance + guide) times ``algo.reward_scale``, the goal bonuses divided
             by rg2 and the coordination bonus divided by rc. The reward and the objective
             stay the paper's; only how the critic represents them changes.
-        demo_episodes: episodes of the scripted expert recorded into a demonstration buffer
-            before training (used by ``algo.demo_batch_size`` and ``algo.bc_weight``); 0 for
-            none, as in the paper's three conditions. Baxter task, cartesian control only.
+        demo_episodes: episodes recorded into a demonstration buffer before training (used
+            by ``algo.demo_batch_size`` and ``algo.bc_weight``): without ``demos``, of the
+            scripted expert; with ``demos``, the recordings moved to the task's random
+            placements (``dualarm.sim_demos.augment``, MimicGen), beside the recordings at their
+            own scenes. 0 for none, as in the paper's three conditions. Baxter task, cartesian
+            control only.
         demos: a demonstration folder (recordings with gripper events, labels.csv and
             scene.csv) whose recordings, replayed at their own scenes in the run's task
             (``dualarm.sim_demos.replay``), fill the demonstration buffer that
@@ -238,9 +241,6 @@ class TrainConfig:
             raise InputError("algo.demo_batch_size > 0 draws from demonstrations: set demos (a "
                              "demonstration folder) or demo_episodes")
         if self.demos is not None:
-            if self.demo_episodes:
-                raise InputError("demos and demo_episodes both fill the demonstration buffer: "
-                                 "give one")
             if task.control != "cartesian":
                 raise InputError("demos: recordings are replayed in cartesian control only, not "
                                  "task.control 'joint'")

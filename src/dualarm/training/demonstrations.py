@@ -53,8 +53,10 @@ def record_expert_demonstrations(config: TrainConfig, vec: VectorEnv, reward_of=
 def record_recording_replays(config: TrainConfig, constraints, head_terms=None,
                              log=None) -> ReplayBuffer:
     """Replay the recordings of ``config.demos`` at their own scenes in the run's task
-    (condition, constraints and observation as training's; ``dualarm.sim_demos.replay``) and
-    return the transitions of those that succeed, rewards whole (N, 2) or, with
+    (condition, constraints and observation as training's; ``dualarm.sim_demos.replay``), and
+    with ``config.demo_episodes`` moved to that many of the task's random placements
+    (``dualarm.sim_demos.augment``, placements seeded from ``DEMO_SEED_BASE`` + the run's
+    seed), and return the transitions of those that succeed, rewards whole (N, 2) or, with
     ``head_terms`` (the trainer's reward heads), split (N, 2, heads) as training stores them.
 
     Args:
@@ -66,13 +68,14 @@ def record_recording_replays(config: TrainConfig, constraints, head_terms=None,
     """
     from dualarm.envs.baxter import BaxterReachGraspAlign
     from dualarm.errors import InputError
+    from dualarm.sim_demos.augment import augment
     from dualarm.sim_demos.replay import load_replay_folder, replay_demonstration
 
     task = config.task_config()
     demos, labels, scenes = load_replay_folder(config.demos, task.workspace())
     env = BaxterReachGraspAlign(task, constraints)
     try:
-        kept, left_out = [], []
+        replays, usable, left_out = [], [], []
         for d in demos:
             if d.grip is None:
                 left_out.append(f"{d.source}: no gripper events (left_grip, right_grip columns)")
@@ -81,13 +84,22 @@ def record_recording_replays(config: TrainConfig, constraints, head_terms=None,
             if not r.success:
                 left_out.append(f"{d.source}: its replay at its scene does not succeed ({r.why})")
                 continue
-            kept.append({"obs": r.obs, "act": r.act, "rew": stored_reward(r.rew, r.terms, head_terms),
-                         "next_obs": r.next_obs, "done": r.done})
+            replays.append(r)
+            usable.append(d)
+        if usable and config.demo_episodes:
+            moved = augment(env, usable, labels, scenes, config.demo_episodes,
+                            DEMO_SEED_BASE + config.seed)
+            replays += moved.replays
+            if log is not None:
+                log(f"demos: {len(moved.replays)} of {moved.attempts} recordings moved to new "
+                    f"placements succeed")
     finally:
         env.close()
     for line in left_out:
         if log is not None:
             log(f"demos: left out {line}")
+    kept = [{"obs": r.obs, "act": r.act, "rew": stored_reward(r.rew, r.terms, head_terms),
+             "next_obs": r.next_obs, "done": r.done} for r in replays]
     if not kept:
         raise InputError(f"none of the {len(demos)} recordings replays to success at its scene "
                          "(`dualarm demos replay` shows where each stops)", source=str(config.demos))

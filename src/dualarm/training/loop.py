@@ -187,7 +187,7 @@ class Trainer:
         if config.demos is not None:
             self.demos = record_recording_replays(config, constraints, self.head_terms,
                                                   log=lambda line: print(line, file=sys.stderr))
-        if config.demo_episodes:
+        elif config.demo_episodes:
             self.demos = record_expert_demonstrations(config, v, self.reward_of,
                                                       self.agent.num_heads)
         if self.demos is not None:
