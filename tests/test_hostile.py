@@ -283,3 +283,27 @@ def test_the_command_line_knows_every_file_of_a_run_directory(world):
     own = {p.name for p in vars(paths).values() if isinstance(p, Path) and p.parent == paths.root}
     assert own == set(RUN_FILES + RUN_FOLDERS) - {LOCK_NAME, DONE_MARKER}
     assert {p.name for p in (world / "run").iterdir()} <= set(RUN_FILES + RUN_FOLDERS)
+
+
+def test_config_reader_refuses_nul_paths_endless_extends_and_yaml_aliases(tmp_path):
+    """One line naming the file for an `extends` holding NUL, a chain of bases deeper than
+    MAX_EXTENDS_DEPTH, and a YAML alias (a few lines of nested aliases expand into billions of
+    values); nothing is written."""
+    from dualarm.errors import InputError
+    from dualarm.training.config import MAX_EXTENDS_DEPTH
+
+    (tmp_path / "nul.yaml").write_text('extends: "base\\0.yaml"\n')
+    for i in range(MAX_EXTENDS_DEPTH + 5):
+        (tmp_path / f"c{i}.yaml").write_text(f"extends: c{i + 1}.yaml\n")
+    (tmp_path / f"c{MAX_EXTENDS_DEPTH + 5}.yaml").write_text("episodes: 3\n")
+    (tmp_path / "bomb.yaml").write_text("a: &a [1, 1, 1, 1, 1, 1, 1, 1, 1]\n"
+                                        "episodes: [*a, *a, *a, *a, *a, *a, *a, *a, *a]\n")
+    for name, message in (("nul.yaml", "NUL"), ("c0.yaml", "chain of bases"),
+                          ("bomb.yaml", "aliases")):
+        out = tmp_path / f"run-{name}"
+        with pytest.raises(InputError, match=message) as caught:
+            TrainConfig.load(tmp_path / name)
+        assert name in str(caught.value) or f"c{MAX_EXTENDS_DEPTH}" in str(caught.value)
+        assert main(["train", "--config", str(tmp_path / name), "--episodes", "1",
+                     "--out", str(out)]) == 2
+        assert not out.exists()

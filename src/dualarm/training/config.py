@@ -435,6 +435,9 @@ PRESETS = ("recipe", "paper")
 #: Fields whose mappings a file merges key by key into its base's (the rest it replaces).
 MERGED_FIELDS = ("algo", "task")
 
+#: The most files a chain of ``extends`` may hold below the file given.
+MAX_EXTENDS_DEPTH = 32
+
 
 def read_config_layers(path: Path, seen: tuple[Path, ...] = ()) -> tuple[dict, str]:
     """The fields of the training-config file ``path``, on top of those of the file its
@@ -468,10 +471,19 @@ def read_config_layers(path: Path, seen: tuple[Path, ...] = ()) -> tuple[dict, s
                          f"to this file's folder) or a preset {PRESETS}; got {name!r}")
     if name in PRESETS:
         return d, name
+    if "\0" in name:
+        raise InputError(f"{where}: field 'extends': a path cannot hold a NUL character; got {name!r}")
+    if len(seen) >= MAX_EXTENDS_DEPTH:
+        raise InputError(f"{where}: field 'extends': more than {MAX_EXTENDS_DEPTH} files in the "
+                         "chain of bases")
     base_path = path.parent / name
-    chain = (*seen, path.resolve())          # this file and the ones that extend it
-    if base_path.resolve() in chain:
-        looped = " -> ".join(str(p) for p in (*chain, base_path.resolve()))
+    try:
+        chain = (*seen, path.resolve())          # this file and the ones that extend it
+        resolved = base_path.resolve()
+    except (OSError, RuntimeError) as exc:       # a symlink loop
+        raise InputError(f"{where}: field 'extends': cannot resolve {str(base_path)!r}: {exc}") from None
+    if resolved in chain:
+        looped = " -> ".join(str(p) for p in (*chain, resolved))
         raise InputError(f"{where}: field 'extends' loops back: {looped}")
     if not base_path.is_file():
         raise InputError(f"{where}: field 'extends': no config file {str(base_path)!r}")

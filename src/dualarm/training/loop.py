@@ -249,6 +249,8 @@ class Trainer:
                 raise InputError(f"{paths.root} already holds a run: resume it with "
                                  f"`dualarm train --resume {paths.root}` or choose another --out")
             trainer = cls(config, paths, make_env, progress)
+            if config.algo.pretrain_updates:
+                trainer.pretrain()
             source = config.constraints_file() if make_env is None else None
             if source is not None:
                 atomic_copy(source, paths.constraints)
@@ -287,6 +289,8 @@ class Trainer:
             trainer = cls(config, paths, make_env, progress)
             if paths.latest.exists():
                 trainer.load(load_checkpoint(paths.latest))
+            elif config.algo.pretrain_updates:        # killed before its first checkpoint
+                trainer.pretrain()
             if episodes is not None and episodes < trainer.episodes:
                 raise InputError(f"{paths.root}: the run has done {trainer.episodes} episodes, "
                                  f"more than --episodes {episodes}; nothing was changed")
@@ -506,18 +510,32 @@ class Trainer:
                 if "discount" in batch:          # demonstrations are one-step transitions
                     demos["discount"] = torch.full((demo_rows,), a.gamma)
                 batch = {k: torch.cat([batch[k], demos[k]]) for k in batch}
-            if self.config.far_action_l2 is not None:
-                batch["penalty_weight"] = self.penalty_weight(batch["obs"])
-            if self.potential is not None:
-                batch["shaping"] = self.shaping(batch)
-            try:
-                losses.append(self.agent.update(batch, demo_rows))
-            except NonFiniteLoss as exc:
-                raise TrainingDiverged(
-                    f"training stopped in the round after episode {self.episodes}: {exc}. "
-                    f"The last good checkpoint is kept in {self.paths.latest}; lower the "
-                    "learning rates or the reward scale, or set grad_clip, and resume") from None
+            losses.append(self._apply(batch, demo_rows))
         return losses
+
+    def pretrain(self) -> None:
+        """``algo.pretrain_updates`` updates on the demonstrations alone (critics by Eq. 13,
+        actors by behaviour cloning), before the first episode; its own random stream, so the
+        run's is the same with or without it."""
+        a = self.config.algo
+        rng = np.random.default_rng([self.config.seed, 2])
+        for _ in range(a.pretrain_updates):
+            self._apply(self.demos.sample(rng, a.batch_size), 0, clone=True)
+        self.agent.adopt_online_actors()
+
+    def _apply(self, batch: dict, demo_rows: int, clone: bool = False) -> dict:
+        """One update of the agent on ``batch``, with the trainer's penalty weights and shaping."""
+        if self.config.far_action_l2 is not None:
+            batch["penalty_weight"] = self.penalty_weight(batch["obs"])
+        if self.potential is not None:
+            batch["shaping"] = self.shaping(batch)
+        try:
+            return self.agent.update(batch, demo_rows, clone)
+        except NonFiniteLoss as exc:
+            raise TrainingDiverged(
+                f"training stopped in the round after episode {self.episodes}: {exc}. "
+                f"The last good checkpoint is kept in {self.paths.latest}; lower the "
+                "learning rates or the reward scale, or set grad_clip, and resume") from None
 
     def _probe_curriculum(self) -> None:
         """Deterministic episodes from each later start class, recorded by the curriculum
