@@ -307,3 +307,22 @@ def test_config_reader_refuses_nul_paths_endless_extends_and_yaml_aliases(tmp_pa
         assert main(["train", "--config", str(tmp_path / name), "--episodes", "1",
                      "--out", str(out)]) == 2
         assert not out.exists()
+
+
+def test_symlink_loops_and_empty_checkpoints_get_one_line(tmp_path, capsys):
+    """A symlink loop given as any path, and a zero-byte checkpoint, end in one line naming
+    the path (the error's own message code once failed on the empty message)."""
+    (tmp_path / "loop1").symlink_to(tmp_path / "loop2")
+    (tmp_path / "loop2").symlink_to(tmp_path / "loop1")
+    loop = str(tmp_path / "loop1")
+    for argv in (["eval", loop], ["train", "--out", f"{loop}/x", "--episodes", "1"],
+                 ["train", "--resume", loop], ["report", loop], ["mocap", "example", "-o", loop]):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "cannot be resolved" in err and "loop1" in err, err
+    from dualarm.training.run_dir import CheckpointError, load_checkpoint
+
+    empty = tmp_path / "latest.pt"
+    empty.write_bytes(b"")
+    with pytest.raises(CheckpointError, match=r"latest\.pt: .*cannot be read \(0 bytes\)"):
+        load_checkpoint(empty)

@@ -145,7 +145,8 @@ def check_paths(args: argparse.Namespace, names: dict[str, str] | None = None) -
     or what a run directory holds, before the command starts.
 
     Raises:
-        InputError: an output resolves to an input, to another output, to a file of a run
+        InputError: a path that cannot be resolved (a symlink loop), an output that
+            resolves to an input, to another output, to a file of a run
             directory, or to a folder where a file is wanted (or the reverse).
     """
     from dualarm.errors import InputError
@@ -158,8 +159,14 @@ def check_paths(args: argparse.Namespace, names: dict[str, str] | None = None) -
         for item in (value if isinstance(value, list) else [value]):
             if isinstance(item, (InputPath, OutputFile, OutputDir)):
                 found.append((name, item))
-    inputs = [(n, p, p.resolve()) for n, p in found if isinstance(p, InputPath)]
-    outputs = [(n, p, p.resolve()) for n, p in found if not isinstance(p, InputPath)]
+    def resolve(name: str, path: Path) -> Path:
+        try:
+            return path.resolve()
+        except (OSError, RuntimeError) as exc:         # RuntimeError: a symlink loop
+            raise InputError(f"{path}: {flag(name)} cannot be resolved ({exc})") from None
+
+    inputs = [(n, p, resolve(n, p)) for n, p in found if isinstance(p, InputPath)]
+    outputs = [(n, p, resolve(n, p)) for n, p in found if not isinstance(p, InputPath)]
     for k, (name, path, real) in enumerate(outputs):
         for other, source, source_real in inputs:
             if real == source_real:

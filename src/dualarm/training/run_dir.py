@@ -160,8 +160,11 @@ def load_checkpoint(path: Path) -> dict:
         payload = torch.load(path, map_location="cpu", weights_only=True)
     except (RuntimeError, EOFError, zipfile.BadZipFile, OSError, ValueError, KeyError,
             AttributeError, IndexError, TypeError) as exc:
-        raise CheckpointError(f"{path}: the checkpoint is corrupt or truncated and cannot be "
-                              f"read ({type(exc).__name__}: {str(exc).splitlines()[0][:200]})") from None
+        detail = (str(exc).splitlines() or [""])[0][:200]
+        size = path.stat().st_size if path.is_file() else None
+        raise CheckpointError(f"{path}: the checkpoint is corrupt or truncated and cannot be read "
+                              + ("(0 bytes)" if size == 0 else f"({type(exc).__name__}: {detail})")
+                              ) from None
     except Exception as exc:  # torch's unpickler raises its own types for foreign content
         raise CheckpointError(f"{path}: not a checkpoint this version can read "
                               f"({type(exc).__name__})") from None
