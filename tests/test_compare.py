@@ -223,3 +223,33 @@ def test_a_new_comparison_without_a_base_trains_the_recipe(tmp_path):
     assert comparison.run_config("none", 3) == recipe.with_(condition="none", seed=3, constraints=None)
     assert comparison.run_config("multi", 3).algo == recipe.algo       # twin critics, averaged actors...
     assert load_manifest(tmp_path / "cmp").base == comparison.base       # recorded as such
+
+
+def test_the_demos_condition_runs_the_recordings_on_the_multi_constraints(tmp_path):
+    """--demos DIR (or --conditions ...,demos) adds the fourth condition: the base config with
+    the multi guide term, the multi constraints and the recordings as demonstrations; its
+    folder is checked (scene included) before anything is written, and stays the comparison's."""
+    from dualarm.demos.formats import DEFAULT_DEMO_DIR
+
+    cons = tmp_path / "cons"
+    shutil.copytree(default_constraints_path("multi").parent, cons)
+    base = TrainConfig.from_dict({**TINY, "task": {"max_episode_steps": 40}}, base=TrainConfig.paper())
+    no_scene = tmp_path / "no-scene"
+    shutil.copytree(DEFAULT_DEMO_DIR, no_scene)
+    (no_scene / "scene.csv").unlink()
+    with pytest.raises(InputError, match="scene"):
+        prepare(tmp_path / "bad", CompareRequest(conditions=("none",), base=base, demos_dir=no_scene))
+    assert not (tmp_path / "bad").exists()
+    with pytest.raises(InputError, match="--demos DIR"):
+        prepare(tmp_path / "bad", CompareRequest(base=base.with_(demos=str(DEFAULT_DEMO_DIR))))
+    comparison = prepare(tmp_path / "cmp", CompareRequest(conditions=("none",), seeds=(0,), episodes=2,
+                                                          base=base, constraints_dir=cons,
+                                                          demos_dir=DEFAULT_DEMO_DIR))
+    assert comparison.conditions == ("none", "demos")
+    run = comparison.run_config("demos", 0)
+    assert (run.condition, run.compared_condition, run.demos) == ("multi", "demos", str(DEFAULT_DEMO_DIR))
+    assert run.constraints == str(tmp_path / "cmp" / "constraints" / "multi.yaml")
+    assert comparison.run_config("none", 0).demos is None
+    assert load_manifest(tmp_path / "cmp").demos_dir == DEFAULT_DEMO_DIR
+    with pytest.raises(InputError, match="demos_dir"):
+        prepare(tmp_path / "cmp", CompareRequest(demos_dir=no_scene))

@@ -64,7 +64,9 @@ def cycles(graph: dict[str, set[str]]) -> set[frozenset[str]]:
 def test_the_vocabulary_module_imports_nothing_of_the_project():
     assert import_graph()["dualarm.task"] == set()
     assert len(task.JOINT_COLUMNS) == 14 and task.JOINT_COLUMNS[7] == "right_s0"
-    assert set(task.GUIDED_CONDITIONS) < set(task.CONDITIONS) == set(task.CONDITION_NAMES)
+    assert set(task.GUIDED_CONDITIONS) < set(task.CONDITIONS) < set(task.COMPARED_CONDITIONS)
+    assert set(task.COMPARED_CONDITIONS) == set(task.CONDITION_NAMES)
+    assert {task.guide_condition(c) for c in task.COMPARED_CONDITIONS} == set(task.CONDITIONS)
 
 
 def test_no_import_cycle_beyond_the_known_ones():

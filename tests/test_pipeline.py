@@ -1,21 +1,25 @@
 """`dualarm pipeline`: demonstrations -> constraints -> comparison -> report, and its resume."""
 
+from pathlib import Path
+
 import yaml
 
 from dualarm.cli.main import main
+from dualarm.demos.formats import DEFAULT_DEMO_DIR
 from dualarm.constraints.constraint_set import ConstraintSet
 from dualarm.experiments.compare import load_manifest
+from dualarm.training import TrainConfig
 
 TINY = {"num_envs": 2, "eval_every": 2, "eval_episodes": 2,
         "algo": {"hidden": [16, 16], "batch_size": 16, "warmup_steps": 0, "buffer_size": 2000},
-        "task": {"max_episode_steps": 5}}
+        "task": {"max_episode_steps": 40}}       # the recordings are retimed to 40 steps
 
 
 def test_pipeline_extracts_trains_reports_and_resumes(tmp_path, capsys):
     base = tmp_path / "base.yaml"
     base.write_text(yaml.safe_dump({"extends": "paper", **TINY}))
     out = tmp_path / "pipe"
-    argv = ["pipeline", "-o", str(out), "--episodes", "2", "--conditions", "none,multi",
+    argv = ["pipeline", "-o", str(out), "--episodes", "2", "--conditions", "none,multi,demos",
             "--seeds", "0", "--workers", "2", "--config", str(base)]
     assert main(argv) == 0
     # constraints extracted from the shipped demonstrations: C1 one segment, C2&C3 two
@@ -26,15 +30,20 @@ def test_pipeline_extracts_trains_reports_and_resumes(tmp_path, capsys):
     # the comparison used them (a copy in the comparison) and trained both runs
     comparison = load_manifest(out)
     assert comparison.constraints_dir == (out / "constraints").resolve()
-    for name in ("none-seed0", "multi-seed0"):
+    for name in ("none-seed0", "multi-seed0", "demos-seed0"):
         lines = (out / "runs" / name / "metrics.csv").read_text().splitlines()
         assert len(lines) == 1 + 2
+    # demos: the shipped recordings on the multi constraints
+    demos = TrainConfig.load_saved(out / "runs" / "demos-seed0" / "config.yaml")
+    assert (demos.condition, demos.compared_condition) == ("multi", "demos")
+    assert Path(demos.demos) == DEFAULT_DEMO_DIR and demos.demo_episodes > 0
     html = (out / "report" / "index.html").read_text()
+    assert "recordings as demonstrations" in html
     assert "fig6_return.png" in html and (out / "report" / "table.csv").exists()
     capsys.readouterr()
     # again: nothing to train, the report is rewritten
     assert main(argv) == 0
-    assert "2 finished" in capsys.readouterr().err
+    assert "3 finished" in capsys.readouterr().err
 
 
 def test_pipeline_stops_at_the_failing_step_and_names_it(tmp_path, capsys):
@@ -46,6 +55,7 @@ def test_pipeline_stops_at_the_failing_step_and_names_it(tmp_path, capsys):
 
 
 def test_pipeline_defaults_fill_a_new_comparison_and_leave_an_existing_one_alone(tmp_path):
+    from dualarm.demos.formats import DEFAULT_DEMO_DIR
     from dualarm.experiments.compare import CompareRequest, prepare
     from dualarm.experiments.pipeline import (DEFAULT_EPISODES, DEFAULT_SEEDS, pipeline_request,
                                               planned_grid)
@@ -53,7 +63,12 @@ def test_pipeline_defaults_fill_a_new_comparison_and_leave_an_existing_one_alone
     out = tmp_path / "pipe"
     new = pipeline_request(out, CompareRequest())
     assert (new.seeds, new.episodes) == (DEFAULT_SEEDS, DEFAULT_EPISODES) == ((0,), 6000)
-    assert planned_grid(out, new) == (("none", "single", "multi"), (0,))
+    assert planned_grid(out, new) == (("none", "single", "multi", "demos"), (0,))
+    assert new.demos_dir == DEFAULT_DEMO_DIR                   # the recordings of the constraints
+    plain = tmp_path / "plain"                                 # recordings without their scene
+    plain.mkdir()
+    assert planned_grid(out, pipeline_request(out, CompareRequest(), plain))[0] == (
+        "none", "single", "multi")
     given = pipeline_request(out, CompareRequest(seeds=(4, 5), episodes=30))
     assert (given.seeds, given.episodes) == ((4, 5), 30)
     from dualarm.training import TrainConfig
@@ -82,5 +97,5 @@ def test_pipeline_trains_every_run_at_once_by_default(tmp_path, monkeypatch, cap
     assert main(["pipeline", "-o", str(tmp_path / "b"), "--seeds", "0,1"]) == 2
     assert main(["pipeline", "-o", str(tmp_path / "c"), "--conditions", "none"]) == 2
     assert main(["pipeline", "-o", str(tmp_path / "d"), "--workers", "1"]) == 2
-    assert asked == [3, 6, 2, 1]
+    assert asked == [4, 8, 2, 1]            # the paper's three and demos, per seed
     assert "stop here" in capsys.readouterr().err

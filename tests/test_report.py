@@ -138,7 +138,8 @@ def test_ratios_are_never_made_up():
     assert r[("multi", "single")] == pytest.approx(4000 / 5600)
     assert r[("multi", "none")] is None and r[("single", "none")] is None
     assert condition_ratios({"multi": 1.0, "single": math.nan, "none": None}) == {
-        ("multi", "none"): None, ("single", "none"): None, ("multi", "single"): None}
+        ("multi", "none"): None, ("single", "none"): None, ("multi", "single"): None,
+        ("demos", "none"): None, ("demos", "multi"): None}
     assert ratio(3.0, 0.0) is None and ratio(3.0, 4.0) == 0.75
 
 

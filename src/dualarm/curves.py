@@ -17,7 +17,8 @@ import numpy as np
 from dualarm.task import TARGET_SUCCESS
 
 #: The ratios between conditions that the paper quotes (numerator, denominator).
-RATIO_PAIRS: tuple[tuple[str, str], ...] = (("multi", "none"), ("single", "none"), ("multi", "single"))
+RATIO_PAIRS: tuple[tuple[str, str], ...] = (("multi", "none"), ("single", "none"), ("multi", "single"),
+                                           ("demos", "none"), ("demos", "multi"))
 
 
 def _curve(x, name: str = "x") -> np.ndarray:

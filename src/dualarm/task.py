@@ -21,9 +21,19 @@ SUBTASKS = ("reach", "grasp", "align")
 CONDITIONS = ("none", "single", "multi")
 #: The conditions guided by joint-angle constraints.
 GUIDED_CONDITIONS = ("single", "multi")
+#: Beyond the paper: the recordings themselves as the learner's demonstrations, on top of the
+#: multi-segment constraints (its guide condition).
+DEMOS_CONDITION = "demos"
+#: The conditions a comparison may hold: the paper's three, then ``DEMOS_CONDITION``.
+COMPARED_CONDITIONS = CONDITIONS + (DEMOS_CONDITION,)
 #: How tables and figures name the conditions.
 CONDITION_NAMES = {"none": "no constraint", "single": "single-segment C1",
-                   "multi": "multi-segment C2&C3"}
+                   "multi": "multi-segment C2&C3", "demos": "recordings as demonstrations + C2&C3"}
+
+
+def guide_condition(condition: str) -> str:
+    """The guide term's condition (one of ``CONDITIONS``) of a compared condition."""
+    return "multi" if condition == DEMOS_CONDITION else condition
 
 #: Paper constants (Section 3.2.1.3): rg1, rg2 (once per arm), rc (once, to both arms) and
 #: the guide reward's c0 per sub-task (reach, grasp, align).

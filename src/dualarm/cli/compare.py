@@ -16,7 +16,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from dualarm.experiments.backends import make_backend
     from dualarm.experiments.compare import compare
 
-    request = compare_request(args, constraints_dir=args.constraints_dir)
+    request = compare_request(args, constraints_dir=args.constraints_dir, demos_dir=args.demos)
     backend = make_backend(args.backend, args.workers, args.ray_address)
     try:
         result = compare(args.output, request, backend, poll_s=args.poll)
@@ -33,7 +33,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-def compare_request(args: argparse.Namespace, constraints_dir=None):
+def compare_request(args: argparse.Namespace, constraints_dir=None, demos_dir=None):
     """The ``CompareRequest`` of ``grid_options`` and ``--episodes`` as parsed."""
     from dualarm.experiments.compare import CompareRequest, parse_conditions, parse_seeds
     from dualarm.training import TrainConfig
@@ -44,16 +44,18 @@ def compare_request(args: argparse.Namespace, constraints_dir=None):
         episodes=args.episodes,
         base=TrainConfig.load(args.config) if args.config is not None else None,
         base_source=str(args.config),
-        constraints_dir=constraints_dir)
+        constraints_dir=constraints_dir, demos_dir=demos_dir)
 
 
 def grid_options(p: argparse.ArgumentParser, seeds: str = "0,1,2",
-                 workers: str = "the CPU count") -> None:
+                 workers: str = "the CPU count", conditions: str = "the paper's three") -> None:
     """The options that say which runs to train and where: shared by compare and pipeline,
     which hands them on to compare (None: the comparison's, or the command's default, which
-    ``seeds`` and ``workers`` name in the help)."""
+    ``seeds``, ``workers`` and ``conditions`` name in the help)."""
     p.add_argument("--conditions", metavar="C1,C2,...",
-                   help="among none, single, multi (default: all three, or the comparison's)")
+                   help="among none, single, multi (the paper's) and demos (the recordings "
+                        f"as demonstrations, with the multi constraints; default: {conditions}, "
+                        "or the comparison's)")
     p.add_argument("--seeds", metavar="S1,S2,...",
                    help=f"seeds, integers >= 0 (default: {seeds}, or the comparison's)")
     p.add_argument("--workers", type=positive_int, metavar="W",
@@ -86,6 +88,10 @@ def add_compare_command(sub) -> None:
     p.add_argument("--constraints-dir", type=InputPath, metavar="DIR",
                    help="folder with single.yaml and multi.yaml (`dualarm constraints extract` "
                         "output; default: the shipped constraint files)")
+    p.add_argument("--demos", type=InputPath, metavar="DIR",
+                   help="a demonstration folder (recordings with gripper events, labels.csv, "
+                        "scene.csv) for the demos condition, which it adds (default for "
+                        "--conditions ...,demos: the shipped set, src/dualarm/data/demos)")
     p.add_argument("--poll", type=positive, default=2.0, metavar="S",
                    help=argparse.SUPPRESS)
     p.add_argument("-o", "--output", type=OutputDir, required=True, metavar="DIR",

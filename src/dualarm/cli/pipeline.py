@@ -10,7 +10,7 @@ from pathlib import Path
 from dualarm.cli.arguments import InputPath, OutputDir, positive_int
 from dualarm.cli.compare import compare_request, grid_options
 from dualarm.cli.report import print_report
-from dualarm.demos.formats import LABELS_NAME
+from dualarm.demos.formats import LABELS_NAME, SCENE_NAME
 
 
 def cmd_pipeline(args: argparse.Namespace) -> int:
@@ -21,7 +21,7 @@ def cmd_pipeline(args: argparse.Namespace) -> int:
     from dualarm.experiments.pipeline import (PipelineStopped, pipeline_request, planned_grid,
                                               run_pipeline)
 
-    request = pipeline_request(args.output, compare_request(args))
+    request = pipeline_request(args.output, compare_request(args), args.demo_dir)
     workers = args.workers
     if workers is None and args.backend == "local":
         # every run at once, even past the core count: the runs are equally long, so R runs
@@ -56,7 +56,9 @@ def add_pipeline_command(sub) -> None:
                     "(C2&C3) constraints from the shipped demonstrations, train every "
                     "condition x seed (`dualarm compare`), and write the report (`dualarm "
                     "report`). Run it again to resume. Every run uses the recipe "
-                    "(TrainConfig's defaults) unless --config says otherwise. The defaults "
+                    "(TrainConfig's defaults) unless --config says otherwise. Beside the paper's "
+                    "three conditions, the demos condition learns from the recordings "
+                    "themselves as demonstrations (with the multi constraints). The defaults "
                     "(one seed per condition, 6000 episodes, all runs at once) are long enough "
                     "for every condition to learn; --episodes 10000 --seeds 0,1,2,3,4 is the "
                     "full reproduction.")
@@ -65,7 +67,10 @@ def add_pipeline_command(sub) -> None:
     p.add_argument("--episodes", type=positive_int, metavar="N",
                    help="training episodes per run (default for a new comparison: 6000, or the "
                         "--config's; then the comparison's; a larger value extends the runs)")
-    grid_options(p, seeds="0", workers="as many as there are runs, at least the CPU count")
+    grid_options(p, seeds="0", workers="as many as there are runs, at least the CPU count",
+                 conditions="the paper's three and demos where the demonstrations have their "
+                            "scene file")
     p.add_argument("--demo-dir", type=InputPath, metavar="DIR",
-                   help=f"demonstrations with {LABELS_NAME} (default: the shipped ones)")
+                   help=f"demonstrations with {LABELS_NAME}, and {SCENE_NAME} for the demos "
+                        "condition (default: the shipped ones)")
     p.set_defaults(func=cmd_pipeline)

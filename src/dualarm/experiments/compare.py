@@ -26,7 +26,8 @@ from dualarm.constraints.constraint_set import ConstraintSet, same_constraints
 from dualarm.errors import InputError
 from dualarm.experiments.backends import MANIFEST, RunOutcome, RunTask, logged_episodes, read_done
 from dualarm.locks import DirectoryLock
-from dualarm.task import CONDITIONS, GUIDED_CONDITIONS
+from dualarm.task import (CONDITIONS, COMPARED_CONDITIONS, DEMOS_CONDITION, GUIDED_CONDITIONS,
+                          guide_condition)
 from dualarm.training.config import TrainConfig
 from dualarm.training.run_dir import RunPaths
 from dualarm.yaml_io import read_yaml
@@ -57,6 +58,9 @@ class CompareRequest:
         base_source: where ``base`` came from (named in conflict messages).
         constraints_dir: a folder with ``single.yaml`` and/or ``multi.yaml``; None uses the
             shipped files (new comparison) or the comparison's own copies.
+        demos_dir: the demonstration folder of the ``demos`` condition (recordings with
+            gripper events, labels.csv, scene.csv); asking for it adds that condition. None:
+            the shipped set, if the condition is asked for.
     """
 
     conditions: tuple[str, ...] | None = None
@@ -65,6 +69,7 @@ class CompareRequest:
     base: TrainConfig | None = None
     base_source: str = "--config"
     constraints_dir: Path | None = None
+    demos_dir: Path | None = None
 
 
 @dataclass(frozen=True)
@@ -98,6 +103,7 @@ class Comparison:
         base: the base TrainConfig (per-run fields at their defaults).
         constraints_dir: the folder the constraint files were copied from, or None for the
             shipped files.
+        demos_dir: the demonstration folder of the ``demos`` condition (None without it).
     """
 
     root: Path
@@ -107,24 +113,30 @@ class Comparison:
     episodes: int
     base: TrainConfig
     constraints_dir: Path | None = None
+    demos_dir: Path | None = None
 
     @property
     def manifest_path(self) -> Path:
         return self.root / MANIFEST
 
     def constraints_path(self, condition: str) -> Path | None:
-        """The comparison's copy of the constraints of ``condition``; None for "none" or the
-        shipped file (a run config's ``constraints: null`` means the shipped one)."""
+        """The comparison's copy of the constraints of ``condition`` (of its guide condition:
+        ``demos`` uses multi's); None for "none" or the shipped file (a run config's
+        ``constraints: null`` means the shipped one)."""
+        condition = guide_condition(condition)
         if condition == "none" or self.constraints_dir is None:
             return None
         return self.root / "constraints" / f"{condition}.yaml"
 
     def run_config(self, condition: str, seed: int) -> TrainConfig:
         """The TrainConfig of one run: the base with the run's condition, seed, episodes and
-        constraints."""
+        constraints, and for ``demos`` the recordings (``TrainConfig.demos``) with the multi
+        guide term."""
         path = self.constraints_path(condition)
-        return self.base.with_(condition=condition, seed=seed, episodes=self.episodes,
-                               constraints=str(path) if path else None)
+        demos = str(self.demos_dir) if condition == DEMOS_CONDITION else None
+        return self.base.with_(condition=guide_condition(condition), seed=seed,
+                               episodes=self.episodes, constraints=str(path) if path else None,
+                               demos=demos)
 
     def runs(self) -> list[RunPlan]:
         """Every (condition, seed) run, conditions first, with its current state."""
@@ -142,6 +154,7 @@ class Comparison:
                 "conditions": list(self.conditions), "seeds": list(self.seeds),
                 "episodes": self.episodes,
                 "constraints_dir": str(self.constraints_dir) if self.constraints_dir else None,
+                "demos_dir": str(self.demos_dir) if self.demos_dir else None,
                 "base": base_dict(self.base)}
 
 
@@ -220,7 +233,8 @@ def load_manifest(root: str | Path) -> Comparison | None:
             seeds=_seeds(data["seeds"], f"{path}: seeds"),
             episodes=_episodes(data["episodes"], f"{path}: episodes"),
             base=base,
-            constraints_dir=Path(data["constraints_dir"]) if data.get("constraints_dir") else None)
+            constraints_dir=Path(data["constraints_dir"]) if data.get("constraints_dir") else None,
+            demos_dir=Path(data["demos_dir"]) if data.get("demos_dir") else None)
     except KeyError as exc:
         raise InputError(f"missing field {exc}", source=str(path)) from None
     return comparison
@@ -234,10 +248,11 @@ def save_manifest(comparison: Comparison) -> None:
 
 def _conditions(values, where: str) -> tuple[str, ...]:
     values = list(values)
-    bad = [c for c in values if c not in CONDITIONS]
+    bad = [c for c in values if c not in COMPARED_CONDITIONS]
     if bad or not values:
-        raise InputError(f"{where}: conditions must be among {', '.join(CONDITIONS)}, got {values}")
-    return tuple(c for c in CONDITIONS if c in values)
+        raise InputError(f"{where}: conditions must be among {', '.join(COMPARED_CONDITIONS)}, "
+                         f"got {values}")
+    return tuple(c for c in COMPARED_CONDITIONS if c in values)
 
 
 def _seeds(values, where: str) -> tuple[int, ...]:
@@ -251,16 +266,21 @@ def merged_grid(existing: "Comparison | None",
                 request: CompareRequest) -> tuple[tuple[str, ...], tuple[int, ...]]:
     """The (conditions, seeds) of the comparison ``prepare`` makes of ``request``: for a new
     one (``existing`` None) the request's, by default every condition and ``DEFAULT_SEEDS``;
-    for an existing one its own joined with the request's. Conditions in ``CONDITIONS``
-    order, seeds sorted.
+    for an existing one its own joined with the request's. A ``demos_dir`` adds the ``demos``
+    condition. Conditions in ``COMPARED_CONDITIONS`` order, seeds sorted.
 
     Raises:
         InputError: a condition or seed is invalid (named as --conditions / --seeds).
     """
+    asked = tuple(request.conditions or ())
+    if request.demos_dir is not None:
+        asked += (DEMOS_CONDITION,)
     if existing is None:
-        return (_conditions(request.conditions or CONDITIONS, "--conditions"),
+        if request.conditions is None:
+            asked += CONDITIONS
+        return (_conditions(asked, "--conditions"),
                 _seeds(request.seeds if request.seeds is not None else DEFAULT_SEEDS, "--seeds"))
-    return (_conditions(set(existing.conditions) | set(request.conditions or ()), "--conditions"),
+    return (_conditions(set(existing.conditions) | set(asked), "--conditions"),
             _seeds(set(existing.seeds) | set(request.seeds or ()), "--seeds"))
 
 
@@ -296,6 +316,9 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
     given_dir = request.constraints_dir.resolve() if request.constraints_dir is not None else None
     if given_dir is not None and not given_dir.is_dir():
         raise InputError(f"{given_dir}: --constraints-dir is not a directory")
+    if request.base is not None and request.base.demos is not None:
+        raise InputError(f"{request.base_source}: field 'demos' is set per run by the comparison: "
+                         "give the folder as --demos DIR (the demos condition)")
 
     if existing is None:
         runs = root / "runs"
@@ -309,7 +332,8 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
             episodes=request.episodes or base.episodes,
             base=TrainConfig.from_dict(base_dict(base), where=request.base_source,
                                       base=TrainConfig.paper()),
-            constraints_dir=given_dir)
+            constraints_dir=given_dir,
+            demos_dir=_demos_dir(conditions, request.demos_dir))
     else:
         if request.base is not None:
             diff = differences(base_dict(existing.base), base_dict(request.base))
@@ -325,11 +349,18 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
         if given_dir is not None and existing.constraints_dir is None:
             raise InputError(f"field 'constraints_dir': the comparison uses the shipped constraint "
                              f"files, not --constraints-dir {given_dir}", source=where)
+        given_demos = request.demos_dir.resolve() if request.demos_dir is not None else None
+        if (given_demos is not None and existing.demos_dir is not None
+                and given_demos != existing.demos_dir):
+            raise InputError(f"field 'demos_dir' is {str(existing.demos_dir)!r}, not --demos "
+                             f"{given_demos}; choose another -o to compare other recordings",
+                             source=where)
         conditions, seeds = merged_grid(existing, request)
         comparison = Comparison(
             root=root, id=existing.id, conditions=conditions, seeds=seeds,
             episodes=max(existing.episodes, request.episodes or 0),
-            base=existing.base, constraints_dir=existing.constraints_dir)
+            base=existing.base, constraints_dir=existing.constraints_dir,
+            demos_dir=existing.demos_dir or _demos_dir(conditions, given_demos))
 
     copies = _constraint_copies(comparison, given_dir)
     for plan in comparison.runs():
@@ -340,6 +371,26 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
     return comparison
 
 
+def _demos_dir(conditions: tuple[str, ...], given: Path | None) -> Path | None:
+    """The demonstration folder of the ``demos`` condition (``given``, or the shipped set),
+    checked as training will read it (recordings, labels, scene); None without the condition.
+
+    Raises:
+        InputError: the folder, a recording, its labels or its scene is missing or bad.
+    """
+    if DEMOS_CONDITION not in conditions:
+        return None
+    from dualarm.demos.formats import DEFAULT_DEMO_DIR
+    from dualarm.envs.config import TaskConfig
+    from dualarm.sim_demos.replay import load_replay_folder
+
+    folder = (given or DEFAULT_DEMO_DIR).resolve()
+    if not folder.is_dir():
+        raise InputError(f"{folder}: --demos is not a directory")
+    load_replay_folder(folder, TaskConfig().workspace())
+    return folder
+
+
 def _constraint_copies(comparison: Comparison, given_dir: Path | None) -> dict[str, Path]:
     """Constraint files to copy into ``root/constraints`` ({condition: source}), after
     checking that every guided condition has one and that ``given_dir`` agrees with the
@@ -347,7 +398,8 @@ def _constraint_copies(comparison: Comparison, given_dir: Path | None) -> dict[s
     if comparison.constraints_dir is None:
         return {}
     copies = {}
-    for condition in (c for c in comparison.conditions if c in GUIDED_CONDITIONS):
+    guided = {guide_condition(c) for c in comparison.conditions} & set(GUIDED_CONDITIONS)
+    for condition in (c for c in GUIDED_CONDITIONS if c in guided):
         copy = comparison.constraints_path(condition)
         source = (given_dir or comparison.constraints_dir) / f"{condition}.yaml"
         if copy.exists():

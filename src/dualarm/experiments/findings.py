@@ -18,7 +18,8 @@ from dualarm.experiments.summary import Report, paper_ratio
 from dualarm.task import TARGET_SUCCESS
 
 #: The comparisons stated, in the order a reader asks them (guided against unguided first).
-FINDING_PAIRS = (("multi", "none"), ("single", "none"), ("multi", "single"))
+FINDING_PAIRS = (("multi", "none"), ("single", "none"), ("multi", "single"),
+                 ("demos", "none"), ("demos", "multi"))
 
 #: Seeds per condition below which a ratio is reported as a single draw, not a measurement.
 MIN_SEEDS_FOR_INTERVAL = 2
@@ -81,10 +82,11 @@ def _ratio_line(report: Report, pair: tuple[str, str]) -> str | None:
     seeds = min(report.conditions[a].seeds, report.conditions[b].seeds)
     if seeds < MIN_SEEDS_FOR_INTERVAL or math.isnan(low) or math.isnan(high):
         return text + "; one seed each, a single draw rather than a measurement of the effect."
+    what = "demonstrations" if a == "demos" else "guidance"
     if high < 1:
-        verdict = f"guidance faster at 95 % ({low:.2f} to {high:.2f})"
+        verdict = f"{what} faster at 95 % ({low:.2f} to {high:.2f})"
     elif low > 1:
-        verdict = f"guidance slower at 95 % ({low:.2f} to {high:.2f})"
+        verdict = f"{what} slower at 95 % ({low:.2f} to {high:.2f})"
     else:
         verdict = (f"95 % interval {low:.2f} to "
                    f"{'beyond the run' if math.isinf(high) else f'{high:.2f}'}, which includes "

@@ -16,8 +16,10 @@ from pathlib import Path
 from dualarm.constraints.extraction import constraints_from_folder
 from dualarm.experiments.compare import (CompareRequest, CompareResult, compare, load_manifest,
                                          merged_grid)
+from dualarm.demos.formats import DEFAULT_DEMO_DIR, SCENE_NAME
 from dualarm.experiments.report import save_report
 from dualarm.experiments.summary import Report, build_report
+from dualarm.task import DEMOS_CONDITION
 
 #: (condition, segment spec) of the constraint files the comparison needs (paper: C1, C2&C3).
 CONSTRAINT_SETS = (("single", "reach+grasp+align"), ("multi", "reach+grasp,align"))
@@ -32,16 +34,28 @@ DEFAULT_SEEDS = (0,)
 DEFAULT_EPISODES = 6000
 
 
-def pipeline_request(output: str | os.PathLike, request: CompareRequest) -> CompareRequest:
+def pipeline_request(output: str | os.PathLike, request: CompareRequest,
+                     demo_dir: str | os.PathLike | None = None) -> CompareRequest:
     """``request`` with the pipeline's ``DEFAULT_SEEDS`` and ``DEFAULT_EPISODES`` where it
     leaves them open, for a new comparison in ``output`` (``DEFAULT_EPISODES`` only without
     a ``base``, whose own episodes count then, as in ``compare``); one that exists keeps its own
     (None there means "as in the manifest", and its episodes are never shortened).
 
+    The demonstrations ``demo_dir`` (None: the shipped set) are also the recordings of the
+    ``demos`` condition: it joins the paper's three in a new comparison where ``request``
+    names no conditions and the folder has its scene file (without one, the recordings cannot
+    be replayed), and wherever ``request`` names it.
+
     Raises:
         InputError: ``output`` holds an unreadable comparison manifest.
     """
-    if load_manifest(output) is not None:
+    folder = Path(demo_dir) if demo_dir is not None else DEFAULT_DEMO_DIR
+    new = load_manifest(output) is None
+    named = request.conditions is not None and DEMOS_CONDITION in request.conditions
+    by_default = new and request.conditions is None and (folder / SCENE_NAME).is_file()
+    if (named or by_default) and request.demos_dir is None:
+        request = replace(request, demos_dir=folder)
+    if not new:
         return request
     episodes = request.episodes
     if episodes is None and request.base is None:     # a base config's own episodes stand
@@ -104,7 +118,7 @@ def run_pipeline(output: str | os.PathLike, request: CompareRequest, backend,
         PipelineStopped: from the error of the step that failed.
     """
     out = Path(output)
-    request = pipeline_request(out, request)
+    request = pipeline_request(out, request, demo_dir)
     conditions, seeds = planned_grid(out, request)
     budget = request.episodes if request.episodes is not None else "the comparison's"
     titles = [f"constraints {name} ({spec}) from the demonstrations" for name, spec in CONSTRAINT_SETS]

@@ -148,7 +148,7 @@ def csv_table(report: Report) -> str:
     cols += [f"paper_{q}" for q in ("episodes_to_target", "convergence_episode",
                                     "convergence_time_s", "max_avg_success")]
     for q in RATIO_QUANTITIES:
-        for den in ("none", "single"):
+        for den in ("none", "single", "multi"):
             cols += [f"{q}_ratio_vs_{den}", f"{q}_median_ratio_vs_{den}",
                      f"{q}_median_ratio_vs_{den}_low", f"{q}_median_ratio_vs_{den}_high",
                      f"paper_{q}_ratio_vs_{den}"]
@@ -164,7 +164,7 @@ def csv_table(report: Report) -> str:
         row += [_csv_num(paper_value(report, q, c)) for q in (
             "episodes_to_target", "convergence_episode", "convergence_time_s", "max_avg_success")]
         for q in RATIO_QUANTITIES:
-            for den in ("none", "single"):
+            for den in ("none", "single", "multi"):
                 pair = (c, den)
                 if pair in RATIO_PAIRS:
                     paper = paper_ratio(q, pair)[0]

@@ -15,7 +15,7 @@ if TYPE_CHECKING:
     from dualarm.experiments.summary import ConditionSummary, Report
 
 #: One colour per condition, the same in every figure.
-COLOURS = {"none": "#1f77b4", "single": "#ff7f0e", "multi": "#2ca02c"}
+COLOURS = {"none": "#1f77b4", "single": "#ff7f0e", "multi": "#2ca02c", "demos": "#d62728"}
 
 
 def _plt():

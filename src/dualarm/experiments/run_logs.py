@@ -31,7 +31,8 @@ class Run:
 
     Attributes:
         path: the run directory.
-        condition: "none", "single" or "multi" (from config.yaml).
+        condition: "none", "single", "multi" or "demos" (from config.yaml: a run with
+            recordings as demonstrations is "demos", ``TrainConfig.compared_condition``).
         seed: the run's seed.
         planned_episodes: ``episodes`` of its config (the run is partial if it has fewer).
         wall_time_s: (n,) cumulative training time at the end of each episode, s.
@@ -166,7 +167,7 @@ def load_run(run_dir: str | Path, actors: str = "policy") -> Run:
         notes += eval_notes
     else:
         e = {name: np.zeros(0) for name in ("episode", column)}
-    return Run(path=paths.root, condition=config.condition, seed=config.seed,
+    return Run(path=paths.root, condition=config.compared_condition, seed=config.seed,
                planned_episodes=config.episodes, wall_time_s=m["wall_time_s"],
                return_total=m["return_total"], success=m["success"],
                eval_episode=e["episode"].astype(int), eval_success=e[column],

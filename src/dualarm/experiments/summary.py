@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from dualarm.errors import InputError
-from dualarm.task import CONDITIONS, TARGET_SUCCESS
+from dualarm.task import COMPARED_CONDITIONS, TARGET_SUCCESS
 from dualarm.curves import (RATIO_PAIRS, Convergence, condition_ratios, convergence,
                                          episodes_to_target, max_average, mean_ci,
                                          median_ratio_ci, trailing_mean)
@@ -140,7 +140,7 @@ class Report:
         window: moving-average window, episodes.
         target: success target of "episodes to target".
         runs: every run read, sorted by condition and seed.
-        conditions: condition -> summary, in ``CONDITIONS`` (absent conditions left out).
+        conditions: condition -> summary, in ``COMPARED_CONDITIONS`` (absent conditions left out).
         ratios: quantity (``RATIO_QUANTITIES``) -> (numerator, denominator) -> ratio of the
             per-condition means, or None when not available.
         median_ratios: the same keys -> (ratio, low, high) of the per-condition medians with
@@ -236,7 +236,7 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
         raise InputError("no run directories (directories with config.yaml and metrics.csv) "
                          "here or up to two levels below", source=str(root))
     runs = sorted((load_run(d, actors) for d in dirs),
-                  key=lambda r: (CONDITIONS.index(r.condition), r.seed, str(r.path)))
+                  key=lambda r: (COMPARED_CONDITIONS.index(r.condition), r.seed, str(r.path)))
     notes = []
     if actors == "average":
         notes.append(f"evaluations are the averaged actors' (eval.csv "
@@ -261,7 +261,7 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
     if not runs_used:
         raise InputError("none of its runs has logged an episode yet", source=str(root))
     conditions = {}
-    for c in CONDITIONS:
+    for c in COMPARED_CONDITIONS:
         group = [r for r in runs_used if r.condition == c]
         if group:
             conditions[c] = summarize_condition(c, group, int(window), float(target))

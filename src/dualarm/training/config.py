@@ -56,6 +56,9 @@ RECIPE_ALGO = DADDPGConfig(
 #: rows per update from the demonstration buffer, and the weight of Q-filtered behaviour
 #: cloning (Nair et al. 2018) in the actor's loss, on the recipe's value scale (rc = 1).
 DEMOS_ALGO = {"demo_batch_size": 64, "bc_weight": 1.0}
+#: ... and the demonstration episodes made from the recordings by moving them to new
+#: placements (``demo_episodes``): 64 scripted-expert episodes were too few, 256 enough.
+DEMOS_EPISODES = 256
 
 
 def _recipe_task() -> dict:
@@ -178,9 +181,10 @@ class TrainConfig:
         demos: a demonstration folder (recordings with gripper events, labels.csv and
             scene.csv) whose recordings, replayed at their own scenes in the run's task
             (``dualarm.sim_demos.replay``), fill the demonstration buffer that
-            ``algo.demo_batch_size`` and ``algo.bc_weight`` draw from (``DEMOS_ALGO``'s where
-            the algo draws no demonstration rows); a replay that does not succeed is left out
-            and named. None: no recordings, as in the paper.
+            ``algo.demo_batch_size`` and ``algo.bc_weight`` draw from; where the algo draws no
+            demonstration rows, ``DEMOS_ALGO``'s values and ``DEMOS_EPISODES`` moved
+            recordings (unless ``demo_episodes`` is given). A replay that does not succeed is
+            left out and named. None: no recordings, as in the paper.
         algo: the DADDPG hyper-parameters.
     """
 
@@ -222,6 +226,7 @@ class TrainConfig:
             raise InputError(f"task overrides {unknown} are not supported; allowed: {TASK_OVERRIDES}")
         if self.demos is not None and self.algo.demo_batch_size == 0:   # demos drawn as DEMOS_ALGO
             object.__setattr__(self, "algo", self.algo.with_(**DEMOS_ALGO))
+            object.__setattr__(self, "demo_episodes", self.demo_episodes or DEMOS_EPISODES)
         # an override that gives the task's own default is no override: one config, one value
         object.__setattr__(self, "task", {k: v for k, v in self.task.items()
                                           if not _is_task_default(k, v)})
@@ -244,6 +249,10 @@ class TrainConfig:
             if task.control != "cartesian":
                 raise InputError("demos: recordings are replayed in cartesian control only, not "
                                  "task.control 'joint'")
+            from dualarm.sim_demos.replay import DEFAULT_STEPS
+            if task.max_episode_steps < DEFAULT_STEPS:
+                raise InputError(f"demos: a recording is retimed to {DEFAULT_STEPS} steps, longer "
+                                 f"than task.max_episode_steps {task.max_episode_steps}")
         if self.demo_episodes and task.control != "cartesian":
             raise InputError("demo_episodes: the scripted expert demonstrates cartesian control "
                              "only, not task.control 'joint'")
@@ -298,6 +307,14 @@ class TrainConfig:
                 "recombine_share": self.recombine_share > 0,
                 "mirror_episodes": self.mirror_episodes}
         return [name for name, on in used.items() if on]
+
+    @property
+    def compared_condition(self) -> str:
+        """The run's condition in a comparison: ``DEMOS_CONDITION`` with recordings as
+        demonstrations, else ``condition``."""
+        from dualarm.task import DEMOS_CONDITION
+
+        return DEMOS_CONDITION if self.demos is not None else self.condition
 
     @property
     def uses_start_states(self) -> bool:
