@@ -153,3 +153,25 @@ def test_demos_options_are_checked_and_the_command_turns_them_on(tmp_path):
     assert saved.demos == str(DEFAULT_DEMO_DIR.resolve())
     assert saved.algo.demo_batch_size == DEMOS_ALGO["demo_batch_size"]
     assert saved.algo.bc_weight == DEMOS_ALGO["bc_weight"]
+
+
+def test_the_shuffled_control_keeps_states_and_actions_but_not_their_pairing():
+    """shuffle_demos permutes each demonstration episode's actions in time: the same states and
+    the same actions per episode are stored, but paired differently."""
+    from dualarm.errors import InputError
+    from dualarm.training import TrainConfig
+    from dualarm.training.demonstrations import record_recording_replays
+
+    config = TrainConfig().with_(condition="none", demos=str(DEFAULT_DEMO_DIR), demo_episodes=2)
+    plain = record_recording_replays(config, None)
+    shuffled = record_recording_replays(config.with_(shuffle_demos=True), None)
+    n = len(plain)
+    assert len(shuffled) == n
+    np.testing.assert_array_equal(plain.data["obs"][:n], shuffled.data["obs"][:n])
+    ends = np.flatnonzero(plain.data["done"][:n]) + 1
+    for start, end in zip(np.r_[0, ends[:-1]], ends):
+        a, b = plain.data["act"][start:end], shuffled.data["act"][start:end]
+        np.testing.assert_array_equal(np.sort(a, axis=0), np.sort(b, axis=0))
+    assert not np.array_equal(plain.data["act"][:n], shuffled.data["act"][:n])
+    with pytest.raises(InputError, match="control for demos"):
+        TrainConfig().with_(shuffle_demos=True)

@@ -185,6 +185,11 @@ class TrainConfig:
             demonstration rows, ``DEMOS_ALGO``'s values and ``DEMOS_EPISODES`` moved
             recordings (unless ``demo_episodes`` is given). A replay that does not succeed is
             left out and named. None: no recordings, as in the paper.
+        shuffle_demos: a control for ``demos``: each demonstration episode's actions are
+            permuted in time before they are stored (the same steps and the same actions,
+            each paired with another step's state), so the demonstrations keep their action
+            statistics but lose what the person did where. A speed-up that survives it does
+            not come from the demonstrated motion.
         algo: the DADDPG hyper-parameters.
     """
 
@@ -214,6 +219,7 @@ class TrainConfig:
     mirror_episodes: bool = True
     demo_episodes: int = 0
     demos: str | None = None
+    shuffle_demos: bool = False
     algo: DADDPGConfig = RECIPE_ALGO
 
     def __post_init__(self):
@@ -253,6 +259,8 @@ class TrainConfig:
             if task.max_episode_steps < DEFAULT_STEPS:
                 raise InputError(f"demos: a recording is retimed to {DEFAULT_STEPS} steps, longer "
                                  f"than task.max_episode_steps {task.max_episode_steps}")
+        if self.shuffle_demos and self.demos is None:
+            raise InputError("shuffle_demos is a control for demos: give demos too")
         if self.demo_episodes and task.control != "cartesian":
             raise InputError("demo_episodes: the scripted expert demonstrates cartesian control "
                              "only, not task.control 'joint'")

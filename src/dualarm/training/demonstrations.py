@@ -56,7 +56,8 @@ def record_recording_replays(config: TrainConfig, constraints, head_terms=None,
     (condition, constraints and observation as training's; ``dualarm.sim_demos.replay``), and
     with ``config.demo_episodes`` moved to that many of the task's random placements
     (``dualarm.sim_demos.augment``, placements seeded from ``DEMO_SEED_BASE`` + the run's
-    seed), and return the transitions of those that succeed, rewards whole (N, 2) or, with
+    seed), and return the transitions of those that succeed (their actions permuted within each
+    episode with ``config.shuffle_demos``, the control), rewards whole (N, 2) or, with
     ``head_terms`` (the trainer's reward heads), split (N, 2, heads) as training stores them.
 
     Args:
@@ -98,7 +99,9 @@ def record_recording_replays(config: TrainConfig, constraints, head_terms=None,
     for line in left_out:
         if log is not None:
             log(f"demos: left out {line}")
-    kept = [{"obs": r.obs, "act": r.act, "rew": stored_reward(r.rew, r.terms, head_terms),
+    rng = np.random.default_rng([config.seed, 3])
+    kept = [{"obs": r.obs, "act": r.act[rng.permutation(len(r.act))] if config.shuffle_demos else r.act,
+             "rew": stored_reward(r.rew, r.terms, head_terms),
              "next_obs": r.next_obs, "done": r.done} for r in replays]
     if not kept:
         raise InputError(f"none of the {len(demos)} recordings replays to success at its scene "
