@@ -407,12 +407,12 @@ def test_far_action_l2_weighs_the_penalty_by_the_distance_to_the_box(tmp_path):
             [[0.03, 0.0, 0.0]] * 2,                              # 3 cm from the box: near
             [[0.0, 0.04, 0.04]] * 2,                             # 5.7 cm: far
             [[0.0, 0.0, -0.2], [0.0, 0.0, 0.0]]]), dtype=torch.float32)  # left far, right at the box
-        w = trainer.penalty_weight(obs)
+        w = trainer.batch_shaping.penalty_weight(obs)
         assert w.shape == (3, 2)
         torch.testing.assert_close(w, torch.tensor([[0.5, 0.5], [0.001, 0.001], [0.001, 0.5]]))
         seen = []
         update = trainer.agent.update
-        trainer.agent.update = lambda batch, rows=0: seen.append(batch["penalty_weight"]) or update(batch, rows)
+        trainer.agent.update = lambda batch, rows=0, clone=False: seen.append(batch["penalty_weight"]) or update(batch, rows, clone)
         trainer.run()
         assert seen and all(b.shape == (16, 2) for b in seen)
     finally:
@@ -447,7 +447,7 @@ def test_near_random_eps_sets_the_share_of_random_actions_near_the_box(tmp_path)
         obs = box_offset_obs(config, trainer.vec.obs_size, [
             [[0.03, 0.0, 0.0]] * 2,                              # both near
             [[0.0, 0.0, -0.2], [0.0, 0.0, 0.0]]])                # left far, right at the box
-        np.testing.assert_allclose(trainer.random_eps(obs), [[0.0, 0.0], [0.3, 0.0]])
+        np.testing.assert_allclose(trainer.exploration.random_eps(obs), [[0.0, 0.0], [0.3, 0.0]])
         explored = exploring_arguments(trainer, "random_eps")
         assert explored and all(e is not None and e.shape == (4, 2) for e in explored)
         assert any((e == 0.0).any() for e in explored) and any((e == 0.3).any() for e in explored)
@@ -455,7 +455,7 @@ def test_near_random_eps_sets_the_share_of_random_actions_near_the_box(tmp_path)
         trainer.close()
     plain = Trainer.start(curriculum_config(episodes=8), tmp_path / "plain", progress=False)
     try:
-        assert plain.random_eps(obs) is None
+        assert plain.exploration.random_eps(obs) is None
     finally:
         plain.close()
     with pytest.raises(ValueError, match="near_random_eps must be"):
@@ -475,12 +475,12 @@ def test_approach_shaping_is_potential_based_on_the_grip_to_box_distance(tmp_pat
                     for left in ([0.0, 0.3, 0.4], [0.0, 0.0, 0.1]))
         done = torch.tensor([0.0, 1.0])
         g = config.algo.gamma
-        shaping = trainer.shaping({"obs": obs, "next_obs": nxt, "done": done})
+        shaping = trainer.batch_shaping.shaping({"obs": obs, "next_obs": nxt, "done": done})
         torch.testing.assert_close(shaping, torch.tensor(
             [[g * -0.2 + 1.0, g * -0.4 + 0.4], [1.0, 0.4]]))
         seen = []
         update = trainer.agent.update
-        trainer.agent.update = lambda batch, demo_rows=0: seen.append(batch) or update(batch, demo_rows)
+        trainer.agent.update = lambda batch, demo_rows=0, clone=False: seen.append(batch) or update(batch, demo_rows, clone)
         trainer.run()
         assert seen and all(b["shaping"].shape == (config.algo.batch_size, 2) for b in seen)
     finally:
@@ -506,10 +506,10 @@ def test_carry_shaping_adds_a_potential_on_the_box_to_target_distance(tmp_path):
                  "next_obs": torch.as_tensor(nxt, dtype=torch.float32), "done": torch.zeros(1)}
         g = config.algo.gamma
         phi = lambda d_box, d_target: -2.0 * d_box - 3.0 * d_target  # noqa: E731
-        torch.testing.assert_close(trainer.shaping(batch), torch.tensor(
+        torch.testing.assert_close(trainer.batch_shaping.shaping(batch), torch.tensor(
             [[g * phi(0.1, 0.1) - phi(0.1, 0.4), g * phi(0.1, 0.2) - phi(0.1, 0.2)]]))
         batch["discount"] = torch.tensor([g ** 3])          # n-step rows: the sum telescopes
-        torch.testing.assert_close(trainer.shaping(batch), torch.tensor(
+        torch.testing.assert_close(trainer.batch_shaping.shaping(batch), torch.tensor(
             [[g ** 3 * phi(0.1, 0.1) - phi(0.1, 0.4), g ** 3 * phi(0.1, 0.2) - phi(0.1, 0.2)]]))
     finally:
         trainer.close()

@@ -45,7 +45,8 @@ def _critic_table(args: argparse.Namespace) -> int:
     """Each arm's critic Q(s_t, a_t) next to the discounted return observed from step t, in
     the learner's units, from each start asked for (the latest checkpoint: the critics)."""
     from dualarm.training.diagnostics import critic_vs_returns
-    from dualarm.training.loop import make_vector_env, shaping_potential
+    from dualarm.training.loop import make_vector_env
+    from dualarm.training.shaping import shaping_potential
     from dualarm.training.policy import load_learner
 
     config, agent, info = load_learner(args.run)

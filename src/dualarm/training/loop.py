@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from dualarm.atomic import atomic_copy
-from dualarm.envs.rules import HEAD_TERMS, observation_layout
+from dualarm.envs.rules import HEAD_TERMS
 from dualarm.training.relabel import ReachRelabeller, TargetRelabeller
 from dualarm.envs.mirror import TaskMirror
 from dualarm.errors import DualarmError, InputError
@@ -35,7 +35,10 @@ from dualarm.training.curriculum import START_CLASSES, ReverseCurriculum
 from dualarm.training.demonstrations import (record_expert_demonstrations, record_recording_replays,
                                              stored_reward)
 from dualarm.training.evaluation import evaluate
+from dualarm.training.exploration import Exploration
 from dualarm.training.rounds import run_round
+from dualarm.training.shaping import BatchShaping
+from dualarm.training.storage import RoundStorage
 from dualarm.training.run_dir import (AVERAGE_EVAL_COLUMNS, EVAL_COLUMNS, CheckpointError, CsvLog,
                                       RunPaths, load_checkpoint, save_checkpoint)
 from dualarm.training.vector import PROBE_SEED_BASE, BaxterVector, ParallelEnvVector, VectorEnv, seeds_for
@@ -76,44 +79,6 @@ def make_vector_env(config: TrainConfig, num_envs: int,
         probs = tuple(float(k == start) for k in range(len(START_CLASSES)))
     return BaxterVector(config.task_config(), constraints, num_envs, probs,
                         approach_starts=training and config.approach_starts)
-
-
-def box_offset_columns(task) -> slice:
-    """The columns (3,) of each arm's box-minus-grip offset in the observations of ``task``
-    (a ``TaskConfig``)."""
-
-    return observation_layout(task.observes_joint_angles)["object_rel_pos"]
-
-
-def grip_to_box_distance(obs, rel_columns: slice):
-    """Each arm's grip-to-box distance (m), (..., A), from raw observations (..., A, O),
-    numpy or torch; ``rel_columns`` from ``box_offset_columns``."""
-    return (obs[..., rel_columns] ** 2).sum(-1) ** 0.5
-
-
-def approach_potential(obs, rel_columns: slice, k: float):
-    """``approach_shaping``'s potential phi(s) = -k x each arm's grip-to-box distance (m),
-    (..., A), from raw observations (..., A, O), numpy or torch. In the learner's reward units."""
-    return -k * grip_to_box_distance(obs, rel_columns)
-
-
-def shaping_potential(config: TrainConfig):
-    """The run's potential phi(obs) -> (..., A) for raw observations (..., A, O), numpy or
-    torch, in the learner's reward units: -``approach_shaping`` x the grip-to-box distance
-    - ``carry_shaping`` x the box-to-target distance (m). None when both are 0."""
-    approach, carry = config.approach_shaping, config.carry_shaping
-    if approach == 0 and carry == 0:
-        return None
-    task = config.task_config()
-    layout = observation_layout(task.observes_joint_angles)
-    rel, box, target = layout["object_rel_pos"], layout["object_pos"], layout["target_pos"]
-
-    def phi(obs):
-        value = approach_potential(obs, rel, approach)
-        if carry > 0:
-            value = value - carry * ((obs[..., target] - obs[..., box]) ** 2).sum(-1) ** 0.5
-        return value
-    return phi
 
 
 class Trainer:
@@ -175,12 +140,7 @@ class Trainer:
                                             config.algo.n_step, config.algo.gamma,
                                             recombine, config.recombine_share)
         self.mirror = TaskMirror(task, constraints) if config.mirror_episodes else None
-        self.potential = shaping_potential(config)      # approach_shaping, carry_shaping
-        # far_action_l2, near_random_eps: each arm's box-minus-grip offset in its observation,
-        # (3,) columns
-        self.rel_columns = None
-        if config.far_action_l2 is not None or config.near_random_eps is not None:
-            self.rel_columns = box_offset_columns(task)
+        self.batch_shaping = BatchShaping(config, self.agent)
         # Demonstrations are recorded again on resume (the expert and the physics are
         # deterministic); the normaliser's statistics then come from the checkpoint.
         self.demos = None
@@ -198,6 +158,7 @@ class Trainer:
             window = 2 * config.curriculum_probe if config.curriculum_probe else 64
             self.curriculum = ReverseCurriculum(config.start_probs, config.start_curriculum, window)
         self.rng = np.random.default_rng([config.seed, 1])
+        self.exploration = Exploration(config, self.agent, self.rng)
         self.episodes = 0
         self.env_steps = 0
         self.updates_owed = 0.0
@@ -361,83 +322,31 @@ class Trainer:
         return TrainResult(self.paths.root, self.episodes, self.env_steps, self.wall_time_s,
                            self.last_eval)
 
-    def box_distance(self, obs):
-        """Each arm's grip-to-box distance (m), (B, A), from raw observations (B, A, O),
-        numpy or torch."""
-        return grip_to_box_distance(obs, self.rel_columns)
-
-    def penalty_weight(self, obs: torch.Tensor) -> torch.Tensor:
-        """The action penalty's weight per sample and arm, (B, A), from raw observations
-        (B, A, O): ``far_action_l2`` where the grip site is more than ``near_box_radius`` m
-        from its box, the learner's ``action_l2`` within it."""
-        far = self.box_distance(obs) > self.config.near_box_radius
-        return torch.where(far, self.config.far_action_l2, self.agent.action_l2)
-
-    def shaping(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
-        """The potential-based shaping term per sample and arm, (B, A), in the learner's
-        reward units: gamma * phi(s') * (1 - done) - phi(s), phi from ``shaping_potential``
-        (``approach_shaping``, ``carry_shaping``) on the raw observations (B, A, O) (a success
-        ends the episode with phi = 0, so the shaped return differs from the paper's by
-        -phi(s0) only). With the batch's ``discount`` (B,) of n-step returns, gamma^m in
-        place of gamma: the m steps' terms telescope to gamma^m phi(s_m) - phi(s_t)."""
-        gamma = batch["discount"].unsqueeze(-1) if "discount" in batch else self.config.algo.gamma
-        phi, phi2 = self.potential(batch["obs"]), self.potential(batch["next_obs"])  # (B, A)
-        return gamma * (1.0 - batch["done"]).unsqueeze(-1) * phi2 - phi
-
-    def random_eps(self, obs: np.ndarray) -> np.ndarray | None:
-        """The share of random exploring actions per copy and arm, (n, A), from observations
-        (n, A, O): ``near_random_eps`` where the grip site is within ``near_box_radius`` m of
-        its box, ``algo.random_eps`` farther away; None (the config's everywhere) without
-        ``near_random_eps``."""
-        c = self.config
-        if c.near_random_eps is None:
-            return None
-        near = self.box_distance(obs) <= c.near_box_radius
-        return np.where(near, c.near_random_eps, c.algo.random_eps)
-
     def _crossed(self, before: int, every: int) -> bool:
         return every > 0 and before // every != self.episodes // every
 
     def _round(self, started: float) -> tuple[list[dict], list[dict]]:
         """Run one episode in each copy (fewer at the end of the run), then update."""
-        c, v, agent, a = self.config, self.vec, self.agent, self.config.algo
+        c, v, agent = self.config, self.vec, self.agent
         n = min(v.num_envs, c.episodes - self.episodes)
         agent.start_episodes(np.arange(v.num_envs) < n)
         if self.curriculum is not None:      # this round's starts, from the episodes so far
             v.set_start_probs(self.curriculum.probs())
-        mask = agent.action_mask[:, 0].numpy()
-        seen = []
-
         timing = self.timing
         collect_start = time.perf_counter()
 
         def act(obs):
             t = time.perf_counter()
-            if self.env_steps < a.warmup_steps:
-                actions = self.rng.uniform(-1.0, 1.0, (v.num_envs, 2, v.act_size)) * mask
-            else:
-                actions = agent.act(obs, self.rng, explore=True, random_eps=self.random_eps(obs))
+            actions = self.exploration.act(obs, self.env_steps)
             timing["act_s"] += time.perf_counter() - t
             return actions
 
-        whole = c.her_share > 0                   # store each episode in one piece
-        episodes = [[] for _ in range(n)]         # then: each copy's steps until it ends
+        storage = RoundStorage(self.buffer, self.mirror, c.her_share > 0, n, self.reward_of)
 
         def store(obs, actions, step, live):
             t = time.perf_counter()
-            reward = self.reward_of(step)
-            if not whole:
-                self.buffer.add(obs[live], actions[live], reward[live], step.obs[live],
-                                step.terminated[live])
-                if self.mirror is not None:
-                    self.buffer.add(*self.mirror.episode(obs[live], actions[live], reward[live],
-                                                         step.obs[live]), step.terminated[live])
-            else:
-                for i in live:
-                    episodes[i].append((obs[i], actions[i], reward[i], step.obs[i],
-                                        step.terminated[i]))
+            storage.store(obs, actions, step, live)
             self.env_steps += len(live)
-            seen.append(step.obs[live])
             timing["store_s"] += time.perf_counter() - t
 
         r = run_round(v, seeds_for(c.seed, self.episodes, n), act, store)
@@ -445,17 +354,9 @@ class Trainer:
         starts = v.starts()[:n] if c.uses_start_states else None
         if self.curriculum is not None and not c.curriculum_probe:
             self.curriculum.record(starts, r.success)
-        for steps in episodes:
-            if steps:
-                o, u, rew, o2, term = (np.stack(x) for x in zip(*steps))
-                self.buffer.add_episode(o, u, rew, o2, bool(term[-1]))
-                if self.mirror is not None:
-                    self.buffer.add_episode(*self.mirror.episode(o, u, rew, o2), bool(term[-1]))
+        seen = storage.finish(r.first_obs)
         round_steps = int(r.steps.sum())
-        seen = np.concatenate([r.first_obs, *seen])
-        if self.mirror is not None:       # the statistics of what the critics are shown
-            seen = np.concatenate([seen, self.mirror.obs(seen)])
-        agent.normalizer.update(seen)
+        agent.normalizer.update(seen)            # the statistics of what the critics are shown
         timing["store_s"] += time.perf_counter() - t
         timing["collect_s"] += t - collect_start
         t = time.perf_counter()
@@ -525,10 +426,7 @@ class Trainer:
 
     def _apply(self, batch: dict, demo_rows: int, clone: bool = False) -> dict:
         """One update of the agent on ``batch``, with the trainer's penalty weights and shaping."""
-        if self.config.far_action_l2 is not None:
-            batch["penalty_weight"] = self.penalty_weight(batch["obs"])
-        if self.potential is not None:
-            batch["shaping"] = self.shaping(batch)
+        self.batch_shaping.apply(batch)
         try:
             return self.agent.update(batch, demo_rows, clone)
         except NonFiniteLoss as exc:
