@@ -61,3 +61,15 @@ def test_recordings_moved_to_new_placements_succeed_and_unmoved_ones_do_not(ship
     assert unmoved == 0
     again = augment(env, demos, labels, scenes, episodes=3, seed=7)     # seeded: the same episodes
     np.testing.assert_array_equal(again.replays[2].act, out.replays[2].act)
+
+
+def test_the_replay_command_reports_the_yield_of_moved_recordings(capsys):
+    from dualarm.cli.main import main
+
+    assert main(["demos", "replay", "--moved", "4", "--seed", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "moved to new placements: 4 of" in out and "yield" in out
+    assert "demo_00    1 of 1" in out
+    with pytest.raises(SystemExit) as exit_:
+        main(["demos", "replay", "--moved", "4", "--seed", "-1"])
+    assert exit_.value.code == 2 and "--seed: must be in 0.." in capsys.readouterr().err

@@ -28,6 +28,14 @@ def positive_int(text: str) -> int:
     return value
 
 
+def seed_number(text: str) -> int:
+    """A seed: an integer in 0..2**32 - 1 (numpy's seeds are unsigned 32-bit here)."""
+    value = _number(text, int)
+    if not 0 <= value <= 2 ** 32 - 1:
+        raise argparse.ArgumentTypeError(f"must be in 0..{2 ** 32 - 1}, got {text!r}")
+    return value
+
+
 def pixels(text: str) -> int:
     """An image side in pixels: an integer in 1..``MAX_PIXELS``."""
     value = positive_int(text)

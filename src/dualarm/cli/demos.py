@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dualarm.cli.arguments import InputPath, OutputDir, OutputFile, non_negative, positive_int
+from dualarm.cli.arguments import (InputPath, OutputDir, OutputFile, non_negative, positive_int,
+                                   seed_number)
 from dualarm.demos.formats import DEFAULT_DEMO_DIR, LABELS_NAME
 from dualarm.demos.loading import DEFAULT_LOWPASS_HZ, MappingOptions
 from dualarm.errors import InputError
@@ -128,11 +129,32 @@ def cmd_demos_replay(args: argparse.Namespace) -> int:
             wins += r.success
             err = "/".join(f"{100 * e:.1f}" for e in r.tracking_error)
             print(f"{r.name:<10} {'yes' if r.success else 'no':<7} {r.steps:>5} {err:>18}  {r.why}")
+        print(f"{wins} of {len(demos)} recordings replay to success at their own scene "
+              f"(task window retimed to {args.steps} steps)")
+        if args.moved:
+            moved_yield(env, demos, labels, scenes, args)
     finally:
         env.close()
-    print(f"{wins} of {len(demos)} recordings replay to success at their own scene "
-          f"(task window retimed to {args.steps} steps)")
     return 0
+
+
+def moved_yield(env, demos, labels, scenes, args) -> None:
+    """Move the recordings to ``args.moved`` of the task's random placements (MimicGen) and
+    print the yield, per recording and in all."""
+    from tqdm import tqdm
+
+    from dualarm.sim_demos.augment import augment
+    from dualarm.training.demonstrations import DEMO_SEED_BASE
+
+    with tqdm(total=args.moved, unit="demo", desc="moving", file=sys.stderr, leave=False) as bar:
+        out = augment(env, demos, labels, scenes, args.moved, DEMO_SEED_BASE + args.seed,
+                      steps=args.steps, on_attempt=lambda tried, kept: bar.update(kept - bar.n))
+    steps = np.mean([r.steps for r in out.replays]) if out.replays else float("nan")
+    print(f"moved to new placements: {len(out.replays)} of {out.attempts} succeed "
+          f"(yield {out.yield_:.0%}; mean {steps:.1f} steps to success); by recording:")
+    for d in demos:
+        tried = [ok for name, ok in zip(out.sources, out.successes) if name == d.name]
+        print(f"  {d.name:<10} {sum(tried)} of {len(tried)}")
 
 
 def labels_option(p: argparse.ArgumentParser) -> None:
@@ -175,11 +197,18 @@ def add_demos_command(sub) -> None:
                                       "to the learner's pace, and follow both hands' paths in the "
                                       "simulator at the demonstration's own scene (DEMO_DIR/scene.csv), "
                                       "the grip closed and opened as recorded. Prints which recordings "
-                                      "succeed, and where the others stop.")
+                                      "succeed, and where the others stop; with --moved, how "
+                                      "many succeed when moved to new placements.")
     demo_dir_argument(rep)
     labels_option(rep)
     mapping_options(rep)
     rep.add_argument("--steps", type=positive_int, default=DEFAULT_STEPS,
                      help=f"steps the task window is retimed to (default: {DEFAULT_STEPS}; an "
                           "episode is 50)")
+    rep.add_argument("--moved", type=positive_int, metavar="N",
+                     help="also move the recordings to N of the task's random placements, each "
+                          "sub-task's hand path with the box or target it acts on (MimicGen; "
+                          "what `dualarm train --demos` does) and print the yield")
+    rep.add_argument("--seed", type=seed_number, default=0,
+                     help="with --moved: the run seed whose placements to use (default: 0)")
     rep.set_defaults(func=cmd_demos_replay)
