@@ -204,3 +204,26 @@ def test_sensor_map_option(tmp_path, motion):
     mapping = ",".join(f"{new}={s}" for s, new in renamed.items())
     assert main(["mocap", "joints", str(path), "-o", str(out), "-q", "--sensor-map", mapping]) == 0
     np.testing.assert_allclose(_table(out)[1][:, 1:], q, atol=1e-6)
+
+
+def _walk(parser, path=()):
+    import argparse
+
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from _walk(sub, path + (name,))
+        else:
+            yield path, action
+
+
+def test_every_option_of_every_command_says_what_it_does():
+    """Walk the whole argparse tree: any option (or positional) without help text fails."""
+    import argparse
+
+    from dualarm.cli.main import build_parser
+
+    missing = [" ".join(path) + " " + "/".join(a.option_strings or [a.dest])
+               for path, a in _walk(build_parser())
+               if a.help is None and not isinstance(a, argparse._HelpAction)]
+    assert not missing, missing

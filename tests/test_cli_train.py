@@ -402,3 +402,13 @@ def test_diagnose_critic_prints_q_next_to_the_observed_return_by_step(run_dir, c
     rows = [line.split() for line in out.splitlines() if line.strip()[:1].isdigit()]
     assert [int(r[0]) for r in rows] == [0, 5]                   # steps 0 and 5 of 10
     assert all(int(r[1]) == 4 and len(r) == 6 for r in rows)
+
+
+def test_train_writes_where_o_output_or_out_says(tmp_path):
+    """Every command that writes takes -o/--output; train keeps --out as an alias."""
+    from dualarm.cli.main import build_parser
+
+    parser = build_parser()
+    for flag in ("-o", "--output", "--out"):
+        args = parser.parse_args(["train", flag, str(tmp_path / "r")])
+        assert str(args.out) == str(tmp_path / "r")

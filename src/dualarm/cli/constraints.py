@@ -131,25 +131,29 @@ def add_constraints_command(sub) -> None:
                      help="per-demo P-th and (100-P)-th percentiles instead of min and max (default: 0)")
     ext.add_argument("--name", default=None, help="name of the set (default: single or multi)")
     mapping_options(ext)
-    ext.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.yaml")
-    ext.add_argument("-q", "--quiet", action="store_true")
+    ext.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.yaml",
+                     help="the constraints file to write")
+    ext.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     ext.set_defaults(func=cmd_constraints_extract)
 
     plot = csub.add_parser("plot", help="demonstrations' joint curves with the constraint bands (PNG)",
                            description="Every demonstration's joint angles per arm against task phase, "
                                        "with each segment's band.")
-    plot.add_argument("constraints", type=InputPath, metavar="FILE.yaml")
+    plot.add_argument("constraints", type=InputPath, metavar="FILE.yaml",
+                      help="a constraints file (`dualarm constraints extract`)")
     demo_dir_argument(plot, flag=True)
     labels_option(plot)
     mapping_options(plot)
-    plot.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FIG.png")
+    plot.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FIG.png",
+                      help="the figure to write")
     plot.set_defaults(func=cmd_constraints_plot)
 
     ana = csub.add_parser("analyze", help="joint-space share and the expert's steps inside",
                           description="For each constraints file: the share of Baxter's joint range "
                                       "(per joint and as a volume) each segment leaves, and the share of the "
                                       "scripted expert's steps inside the range of its arm's segment.")
-    ana.add_argument("constraints", type=InputPath, nargs="+", metavar="FILE.yaml")
+    ana.add_argument("constraints", type=InputPath, nargs="+", metavar="FILE.yaml",
+                     help="one or more constraints files, compared side by side")
     ana.add_argument("--episodes", type=positive_int, default=100, help="expert episodes (default: 100)")
     ana.add_argument("--seed", type=int, default=1000, help="seed of the first episode (default: 1000)")
     ana.add_argument("-o", "--output", type=OutputDir, metavar="DIR",

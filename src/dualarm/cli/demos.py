@@ -173,7 +173,8 @@ def add_demos_command(sub) -> None:
                                       "recordings (random mountings, noise, a zero-pose window) with "
                                       "sub-task labels. The same --count and --seed give the same bytes; "
                                       "--count 10 --seed 0 is the shipped set.")
-    gen.add_argument("-o", "--output", type=OutputDir, required=True, metavar="DIR")
+    gen.add_argument("-o", "--output", type=OutputDir, required=True, metavar="DIR",
+                     help="the demonstration folder to write (recordings, labels.csv, scene.csv)")
     gen.add_argument("--count", type=positive_int, default=10, help="number of demonstrations (default: 10)")
     gen.add_argument("--seed", type=int, default=0, help="seed (default: 0)")
     gen.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")

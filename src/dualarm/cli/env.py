@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dualarm.cli.arguments import InputPath, OutputFile, VideoFile, frame_rate, pixels
+from dualarm.cli.arguments import InputPath, OutputFile, VideoFile, frame_rate, pixels, positive_int
 from dualarm.task import CONDITIONS
 
 
@@ -118,14 +118,16 @@ def add_env_command(sub) -> None:
         p.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
 
     def rendering_options(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--policy", choices=("expert", "random"), default="expert")
+        p.add_argument("--policy", choices=("expert", "random"), default="expert",
+                       help="who acts: the scripted expert or uniform random actions (default: expert)")
         frame_options(p)
 
     video = esub.add_parser("video", help="render episodes of a policy to MP4 or GIF",
                             description="Run episodes of a policy and write them as a video.")
     task_options(video)
     rendering_options(video)
-    video.add_argument("--episodes", type=int, default=2)
+    video.add_argument("--episodes", type=positive_int, default=2,
+                       help="episodes, one after the other in the video (default: 2)")
     video.add_argument("--fps", type=frame_rate, default=12.0,
                        help="frames per second of the video; one frame per step, so the default "
                             "plays at 0.24x real time (a step is 20 ms)")
@@ -137,13 +139,16 @@ def add_env_command(sub) -> None:
                              description="Run the scripted expert over seeded episodes and report "
                                          "its success rate, episode length and returns.")
     task_options(expert)
-    expert.add_argument("--episodes", type=int, default=200)
+    expert.add_argument("--episodes", type=positive_int, default=200,
+                        help="seeded episodes to run (default: 200)")
     expert.set_defaults(func=cmd_env_expert)
 
     strip = esub.add_parser("strip", help="a strip of frames of one episode (PNG)",
                             description="Render one episode and put evenly spaced frames side by side.")
     task_options(strip)
     rendering_options(strip)
-    strip.add_argument("--frames", type=int, default=5)
-    strip.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.png")
+    strip.add_argument("--frames", type=positive_int, default=5,
+                       help="frames in the strip, evenly spaced over the episode (default: 5)")
+    strip.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.png",
+                       help="the PNG to write")
     strip.set_defaults(func=cmd_env_strip)

@@ -32,7 +32,8 @@ def add_eval_command(sub) -> None:
     ev = sub.add_parser("eval", help="success rate and return of a trained policy",
                         description="Evaluate a run's policy on the fixed set of evaluation episodes.")
     run_options(ev)
-    ev.add_argument("--episodes", type=positive_int, default=100)
+    ev.add_argument("--episodes", type=positive_int, default=100,
+                    help="evaluation episodes, each at its own seeded placement (default: 100)")
     ev.add_argument("--start", choices=SUBTASKS, default="reach",
                     help="the sub-task both arms start at: reach (the normal reset, default), "
                          "grasp (at the boxes, fingers open) or align (holding them): how "

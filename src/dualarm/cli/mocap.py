@@ -164,7 +164,8 @@ def add_mocap_command(sub) -> None:
                              description="Write time,left_q1..left_q7,right_q1..right_q7 (rad), one row "
                                          "per input sample.")
     mapping_options(joints)
-    joints.add_argument("-o", "--output", type=OutputFile, required=True, metavar="OUTPUT.csv")
+    joints.add_argument("-o", "--output", type=OutputFile, required=True, metavar="OUTPUT.csv",
+                        help="the joint-angle CSV to write (time and 14 angles, rad; human unless --robot)")
     joints.add_argument("--robot", action="store_true",
                         help="write the retargeted Baxter joint vector (clipped to its limits)")
     joints.add_argument("--residuals", type=OutputFile, metavar="FILE.csv",
@@ -176,12 +177,14 @@ def add_mocap_command(sub) -> None:
                            description="Map a recording and draw its joint angles (degrees), residuals, "
                                        "and the human and Baxter models side by side.")
     mapping_options(plot)
-    plot.add_argument("-o", "--output", type=OutputDir, required=True, metavar="DIR")
+    plot.add_argument("-o", "--output", type=OutputDir, required=True, metavar="DIR",
+                      help="folder for the figures")
     plot.add_argument("--instants", type=_comma_floats, metavar="T1,T2,...",
                       help="seconds from the start at which to draw stick figures")
     plot.set_defaults(func=cmd_mocap_plot)
 
     example = msub.add_parser("example", help="write the built-in example recording",
                               description="Regenerate the built-in example recording (deterministic).")
-    example.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.csv")
+    example.add_argument("-o", "--output", type=OutputFile, required=True, metavar="FILE.csv",
+                         help="the example recording to write")
     example.set_defaults(func=cmd_mocap_example)

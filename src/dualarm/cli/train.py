@@ -72,8 +72,9 @@ def add_train_command(sub) -> None:
     train.add_argument("--episodes", type=positive_int, help="training episodes in all (default: the recipe's 10000)")
     train.add_argument("--seed", type=int, help="seed of the run (default: 0)")
     train.add_argument("--num-envs", type=positive_int, help="environment copies stepped together (default: 16)")
-    train.add_argument("--out", type=OutputDir, metavar="DIR",
-                       help="run directory (default: runs/CONDITION-seedSEED)")
+    train.add_argument("-o", "--output", "--out", dest="out", type=OutputDir, metavar="DIR",
+                       help="run directory (default: runs/CONDITION-seedSEED; --out is the "
+                            "older spelling)")
     train.add_argument("--config", type=InputPath, metavar="FILE.yaml|paper",
                        help="training settings: a YAML file of any fields of a run's config.yaml "
                             "(the fields it leaves out take the recipe's, or a preset's with "
