@@ -326,3 +326,17 @@ def test_symlink_loops_and_empty_checkpoints_get_one_line(tmp_path, capsys):
     empty.write_bytes(b"")
     with pytest.raises(CheckpointError, match=r"latest\.pt: .*cannot be read \(0 bytes\)"):
         load_checkpoint(empty)
+
+
+def test_compare_and_report_leave_a_training_runs_directory_alone(tmp_path, capsys):
+    """compare -o RUN is refused before anything is written; report RUN writes RUN-report."""
+    run = tmp_path / "run"
+    assert main(["train", "--config", "paper", "--episodes", "1", "--num-envs", "1",
+                 "--condition", "none", "-o", str(run)]) == 0
+    before = sorted(p.name for p in run.iterdir())
+    assert main(["compare", "--conditions", "none", "--seeds", "0", "--episodes", "1",
+                 "-o", str(run)]) == 2
+    assert "directory of a training run" in capsys.readouterr().err
+    assert main(["report", str(run)]) == 0
+    assert sorted(p.name for p in run.iterdir()) == before
+    assert (tmp_path / "run-report" / "index.html").is_file()

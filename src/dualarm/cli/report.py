@@ -16,8 +16,18 @@ def cmd_report(args: argparse.Namespace) -> int:
     from dualarm.experiments.summary import build_report
 
     report = build_report(args.dir, args.window, args.target, args.actors)
-    print_report(report, save_report(report, args.output or args.dir / "report"))
+    print_report(report, save_report(report, args.output or default_output(args.dir)))
     return 0
+
+
+def default_output(source):
+    """Where a report goes without -o: DIR/report for a comparison, and beside a single run
+    (RUN-report), so that no command but ``train`` writes into a run directory."""
+    from dualarm.training.run_dir import RunPaths
+
+    if RunPaths(source).config.exists():
+        return source.with_name(source.name + "-report")
+    return source / "report"
 
 
 def print_report(report, index) -> None:
@@ -47,7 +57,8 @@ def add_report_command(sub) -> None:
                     "paper's values beside them.")
     report.add_argument("dir", type=InputPath, metavar="DIR", help="comparison directory")
     report.add_argument("-o", "--output", type=OutputDir, metavar="OUT",
-                        help="output directory (default: DIR/report)")
+                        help="output directory (default: DIR/report, or RUN-report beside a "
+                             "single run)")
     report.add_argument("--window", type=positive_int, default=100, metavar="N",
                         help="moving-average window, episodes (default: 100)")
     report.add_argument("--target", type=rate, default=TARGET_SUCCESS, metavar="RATE",

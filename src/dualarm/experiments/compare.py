@@ -305,6 +305,9 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
     root = Path(root).resolve()
     if root.exists() and not root.is_dir():
         raise InputError(f"{root}: not a directory")
+    if RunPaths(root).config.exists():
+        raise InputError(f"{root} is the directory of a training run: choose another -o for the "
+                         "comparison (nothing was written)")
     existing = load_manifest(root)
     where = str(root / MANIFEST)
     if request.conditions is not None:
