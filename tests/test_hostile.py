@@ -340,3 +340,15 @@ def test_compare_and_report_leave_a_training_runs_directory_alone(tmp_path, caps
     assert main(["report", str(run)]) == 0
     assert sorted(p.name for p in run.iterdir()) == before
     assert (tmp_path / "run-report" / "index.html").is_file()
+
+
+def test_a_resume_clears_the_temporary_file_of_a_checkpoint_write_killed_mid_way(tmp_path):
+    run = tmp_path / "run"
+    assert main(["train", "--config", "paper", "--episodes", "1", "--num-envs", "1",
+                 "--condition", "none", "-o", str(run)]) == 0
+    litter = run / "checkpoints" / ".latest.0123456789ab.tmp.pt"
+    litter.write_bytes(b"half a checkpoint")
+    keep = run / "checkpoints" / "notes.tmp.txt"                    # not atomic_path's: kept
+    keep.write_text("mine")
+    assert main(["train", "--resume", str(run), "--episodes", "2"]) == 0
+    assert not litter.exists() and keep.exists()

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import secrets
 from collections.abc import Iterator
 from pathlib import Path
@@ -32,6 +33,20 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+#: ``atomic_path``'s temporary names: ``.<stem>.<12 hex>.tmp<suffix>``.
+_TEMPORARY = re.compile(r"^\..+\.[0-9a-f]{12}\.tmp(\..*)?$")
+
+
+def leftover_temporaries(folder: str | os.PathLike) -> list[Path]:
+    """The temporary files ``atomic_path`` left in ``folder`` when its process was killed
+    mid-write. Only a caller that owns the folder (holds its lock) may remove them: another
+    writer's may be in use."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return []
+    return sorted(p for p in folder.iterdir() if _TEMPORARY.match(p.name) and p.is_file())
 
 
 @contextlib.contextmanager

@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 import torch
 
-from dualarm.atomic import atomic_copy
+from dualarm.atomic import atomic_copy, leftover_temporaries
 from dualarm.envs.rules import HEAD_TERMS
 from dualarm.training.relabel import ReachRelabeller, TargetRelabeller
 from dualarm.envs.mirror import TaskMirror
@@ -261,6 +261,8 @@ class Trainer:
                 trainer.stored_config().save(paths.config)
             trainer.metrics.rewrite(metrics)
             trainer.eval_log.rewrite(evaluations)
+            for litter in leftover_temporaries(paths.checkpoints):   # a write killed mid-way
+                litter.unlink()
         except BaseException:
             lock.release()
             raise
