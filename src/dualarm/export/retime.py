@@ -13,6 +13,7 @@ trajectory that already respects the limits keeps its timing.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -189,7 +190,6 @@ def retime(trajectory: JointTrajectory, limits: Limits | None = None, never_fast
     Raises:
         RetimeError: no traversal within the limits exists.
     """
-    import toppra
     import toppra.algorithm as algorithm
     import toppra.constraint as constraint
 
@@ -201,7 +201,8 @@ def retime(trajectory: JointTrajectory, limits: Limits | None = None, never_fast
     grid = np.unique(np.concatenate([np.linspace(a, b, grid_per_segment + 1)
                                      for a, b in zip(time[:-1], time[1:])]))
     v_max, a_max = limits.of_path(never_faster)
-    toppra.setup_logging("WARNING")
+    # toppra logs its own warnings when no traversal exists; RetimeError says it in one line
+    logging.getLogger("toppra").setLevel(logging.ERROR)
     shrink = 1.0
     for _ in range(5):
         v = shrink * v_max
