@@ -234,3 +234,22 @@ def test_a_trajectory_is_checked_where_it_is_made():
         JointTrajectory(np.zeros(1), HOME[None], np.zeros((1, 2))).check()
     with pytest.raises(InputError, match="velocity scale must be in"):
         Limits.baxter(velocity_scale=1.5)
+
+
+def test_options_that_would_do_nothing_are_refused_before_anything_is_written(tmp_path, capsys):
+    """--plot/--replay need a time-parameterised trajectory, --retime is csv's, and a plot must
+    be a figure format: each is one line, and no output appears."""
+    src = tmp_path / "t.csv"
+    write_trajectory_csv(src, JointTrajectory(np.linspace(0, 1, 5), np.zeros((5, 14)), np.zeros((5, 2))))
+    for argv, says in (
+            (["--format", "csv", "--plot", str(tmp_path / "p.png")], "time-parameterised"),
+            (["--format", "onnx", "--replay"], "time-parameterised"),
+            (["--format", "baxter", "--retime"], "csv only")):
+        out = tmp_path / "out.x"
+        assert main(["export", str(src), "-o", str(out), *argv]) == 2, argv
+        assert says in capsys.readouterr().err and not out.exists()
+    with pytest.raises(SystemExit):
+        main(["export", str(src), "-o", str(tmp_path / "o.csv"), "--retime", "--plot",
+              str(tmp_path / "check.xyz")])
+    assert "a figure must end in" in capsys.readouterr().err
+    assert not (tmp_path / "o.csv").exists()

@@ -106,6 +106,21 @@ class VideoFile(OutputFile):
         return path
 
 
+#: Figure formats every figure writer here can produce (matplotlib's raster and vector ones).
+FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
+
+
+class FigureFile(OutputFile):
+    """A figure the command writes: ``.png``, ``.pdf`` or ``.svg``, refused before any work."""
+
+    def __new__(cls, *args):
+        path = super().__new__(cls, *args)
+        if path.suffix.lower() not in FIGURE_SUFFIXES:
+            raise argparse.ArgumentTypeError(f"{path}: a figure must end in "
+                                             f"{', '.join(FIGURE_SUFFIXES)}")
+        return path
+
+
 class NewOutput(OutputFile):
     """A file or folder the command creates; refused if anything exists there already."""
 

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 
-from dualarm.cli.arguments import InputPath, NewOutput, OutputFile, positive
+from dualarm.cli.arguments import FigureFile, InputPath, NewOutput, positive
 from dualarm.errors import InputError
 
 FORMATS = {
@@ -53,6 +53,15 @@ def _print_report(retimed) -> None:
 def cmd_export(args: argparse.Namespace) -> int:
     """Write a run's episode (or a trajectory CSV) as csv, baxter, ros2 or onnx."""
     source_is_run = Path(args.source).is_dir()
+    if args.retime and args.format != "csv":
+        raise InputError(f"--retime: csv only; --format {args.format} "
+                         + ("is always time-parameterised" if args.format != "onnx"
+                            else "exports the policy, not a trajectory") + " (nothing was written)")
+    retiming = args.format in ("baxter", "ros2") or args.retime
+    checks = [flag for flag, given in (("--plot", args.plot), ("--replay", args.replay)) if given]
+    if checks and not retiming:
+        raise InputError(f"{' and '.join(checks)}: check a time-parameterised trajectory; use "
+                         "--format baxter or ros2, or csv with --retime (nothing was written)")
     if args.format == "onnx":
         if not source_is_run:
             raise InputError(f"{args.source}: --format onnx exports a run's policy; give a run directory")
@@ -65,7 +74,6 @@ def cmd_export(args: argparse.Namespace) -> int:
         print(f"{info['checkpoint']} -> {args.output}: largest difference from PyTorch over "
               f"{error['observations']} observations {error['max_abs']:.1e}")
         return 0
-    retiming = args.format != "csv" or args.retime
     if not retiming and not source_is_run:
         raise InputError(f"{args.source}: --format csv of a trajectory file would copy it; add "
                          "--retime to time-parameterise it")
@@ -133,7 +141,7 @@ def add_export_command(sub) -> None:
                         help="fraction of Baxter's velocity limits to use, in (0, 1] (default 1)")
     export.add_argument("--acceleration-scale", type=positive, default=1.0, metavar="S",
                         help="fraction of the acceleration limits to use, in (0, 1] (default 1)")
-    export.add_argument("--plot", type=OutputFile, metavar="FILE.png",
+    export.add_argument("--plot", type=FigureFile, metavar="FILE.png",
                         help="also plot position, velocity and acceleration per joint against the limits")
     export.add_argument("--replay", action="store_true",
                         help="replay the time-parameterised trajectory in the simulator with "
