@@ -352,3 +352,15 @@ def test_a_resume_clears_the_temporary_file_of_a_checkpoint_write_killed_mid_way
     keep.write_text("mine")
     assert main(["train", "--resume", str(run), "--episodes", "2"]) == 0
     assert not litter.exists() and keep.exists()
+
+
+def test_a_failed_start_leaves_no_folders_it_made(tmp_path):
+    """train -o x/y/r with a bad constraints file: no x/, no x/y/ left behind; a folder that
+    was there before stays."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("garbage: [\n")
+    (tmp_path / "kept").mkdir()
+    for out in (tmp_path / "x" / "y" / "r", tmp_path / "kept" / "y" / "r"):
+        assert main(["train", "--constraints", str(bad), "-o", str(out), "--episodes", "1"]) == 2
+    assert not (tmp_path / "x").exists()
+    assert (tmp_path / "kept").is_dir() and not any((tmp_path / "kept").iterdir())

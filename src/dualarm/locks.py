@@ -38,6 +38,8 @@ class DirectoryLock:
     def __init__(self, root: str | os.PathLike, purpose: str):
         self.root = Path(root)
         self.created = not self.root.exists()
+        # the folders above root that this lock makes, innermost first (removed with it)
+        self.made_parents = [p for p in self.root.parents if not p.exists()]
         self.root.mkdir(parents=True, exist_ok=True)
         self._file = open(self.root / LOCK_NAME, "a+")
         try:
@@ -65,7 +67,8 @@ class DirectoryLock:
 
     def release(self, remove_if_created: bool = False) -> None:
         """Let go of the lock; with ``remove_if_created``, also delete the directory if this
-        lock created it and nothing but the lock file is in it (a start that failed)."""
+        lock created it and nothing but the lock file is in it (a start that failed), and the
+        folders above it that it created, while they are empty."""
         if self._file is None:
             return
         lock_path = self.root / LOCK_NAME
@@ -73,6 +76,8 @@ class DirectoryLock:
             lock_path.unlink(missing_ok=True)
             with contextlib.suppress(OSError):
                 self.root.rmdir()
+                for parent in self.made_parents:      # rmdir refuses a folder that is not empty
+                    parent.rmdir()
         self._file.close()                    # closing the descriptor releases flock
         self._file = None
 
