@@ -364,3 +364,15 @@ def test_a_failed_start_leaves_no_folders_it_made(tmp_path):
         assert main(["train", "--constraints", str(bad), "-o", str(out), "--episodes", "1"]) == 2
     assert not (tmp_path / "x").exists()
     assert (tmp_path / "kept").is_dir() and not any((tmp_path / "kept").iterdir())
+
+
+def test_an_unreachable_ray_cluster_is_refused_before_anything_is_written(tmp_path, capsys):
+    import socket
+
+    with socket.socket() as s:                     # a free port with nothing listening
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    out = tmp_path / "cmp"
+    assert main(["compare", "--backend", "ray", "--ray-address", f"127.0.0.1:{port}",
+                 "--conditions", "none", "--seeds", "0", "--episodes", "1", "-o", str(out)]) == 2
+    assert "nothing answers there" in capsys.readouterr().err and not out.exists()

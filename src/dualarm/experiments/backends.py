@@ -535,6 +535,32 @@ class RayBackend:
             self._started = False
 
 
+#: Seconds to wait for a Ray cluster's address to accept a connection before giving up.
+CONNECT_TIMEOUT_S = 5.0
+
+
+def check_reachable(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+    """Refuse a Ray address ("host:port" or "ray://host:port") that accepts no connection
+    within ``timeout_s`` (ray.init would wait minutes). "auto" and addresses without a port
+    are left to Ray.
+
+    Raises:
+        InputError: naming --ray-address.
+    """
+    import socket
+
+    target = address.removeprefix("ray://")
+    host, _, port = target.rpartition(":")
+    if not host or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except (OSError, ValueError) as exc:
+        raise InputError(f"--ray-address {address}: nothing answers there within {timeout_s:g} s "
+                         f"({exc}); start the cluster (`ray start --head`) or fix the address "
+                         "(nothing was written)") from None
+
+
 def make_backend(kind: str, workers: int | None = None, address: str | None = None):
     """A backend by name: "local" (``workers`` default: CPU count) or "ray"."""
     if kind == "local":
@@ -542,5 +568,7 @@ def make_backend(kind: str, workers: int | None = None, address: str | None = No
             raise InputError("--ray-address needs --backend ray")
         return LocalBackend(workers or os.cpu_count() or 1)
     if kind == "ray":
+        if address:
+            check_reachable(address)
         return RayBackend(address, workers)
     raise InputError(f"--backend must be local or ray, got {kind!r}")
