@@ -253,3 +253,13 @@ def test_the_demos_condition_runs_the_recordings_on_the_multi_constraints(tmp_pa
     assert load_manifest(tmp_path / "cmp").demos_dir == DEFAULT_DEMO_DIR
     with pytest.raises(InputError, match="demos_dir"):
         prepare(tmp_path / "cmp", CompareRequest(demos_dir=no_scene))
+
+
+def test_a_constraints_file_that_does_not_fit_its_condition_is_refused_before_anything_is_written(tmp_path):
+    cons = tmp_path / "cons"
+    cons.mkdir()
+    shutil.copy(default_constraints_path("multi"), cons / "single.yaml")   # two segments
+    with pytest.raises(InputError, match="needs one segment"):
+        prepare(tmp_path / "cmp", CompareRequest(conditions=("single",), seeds=(0,), episodes=1,
+                                                 constraints_dir=cons))
+    assert not (tmp_path / "cmp").exists()

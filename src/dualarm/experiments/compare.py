@@ -22,7 +22,7 @@ from pathlib import Path
 import yaml
 
 from dualarm.atomic import atomic_copy, atomic_open
-from dualarm.constraints.constraint_set import ConstraintSet, same_constraints
+from dualarm.constraints.constraint_set import same_constraints
 from dualarm.errors import InputError
 from dualarm.experiments.backends import MANIFEST, RunOutcome, RunTask, logged_episodes, read_done
 from dualarm.locks import DirectoryLock
@@ -414,7 +414,8 @@ def _constraint_copies(comparison: Comparison, given_dir: Path | None) -> dict[s
         if not source.exists():
             raise InputError(f"{source}: no {condition}.yaml in the constraints directory "
                              f"(condition '{condition}' needs it; see `dualarm constraints extract`)")
-        ConstraintSet.load(source)
+        # read as the run will read it (a single-segment file for single, ...)
+        comparison.base.with_(condition=condition, constraints=str(source)).load_constraints()
         copies[condition] = source
     return copies
 
