@@ -227,3 +227,20 @@ def test_every_option_of_every_command_says_what_it_does():
                for path, a in _walk(build_parser())
                if a.help is None and not isinstance(a, argparse._HelpAction)]
     assert not missing, missing
+
+
+def test_a_missing_optional_package_is_one_line_naming_the_extra(tmp_path, monkeypatch, capsys):
+    import sys
+
+    from dualarm.cli.main import main
+
+    monkeypatch.setitem(sys.modules, "toppra", None)        # as if the extra were not installed
+    monkeypatch.setitem(sys.modules, "toppra.algorithm", None)
+    src = tmp_path / "t.csv"
+    src.write_text("time," + ",".join(f"{a}_{j}" for a in ("left", "right")
+                                      for j in ("s0", "s1", "e0", "e1", "w0", "w1", "w2"))
+                   + ",grip_left,grip_right\n"
+                   + "\n".join(f"{t}," + ",".join(["0"] * 16) for t in (0.0, 0.5, 1.0)) + "\n")
+    assert main(["export", str(src), "--format", "baxter", "-o", str(tmp_path / "b.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "pip install 'dualarm[export]'" in err and "toppra" in err

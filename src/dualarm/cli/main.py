@@ -49,6 +49,19 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         print(f"dualarm: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
         return 2
+    except ModuleNotFoundError as exc:
+        package = (exc.name or "").split(".")[0]
+        if package not in OPTIONAL_PACKAGES:
+            raise
+        print(f"dualarm: error: this needs {package}, which is not installed: "
+              f"pip install {OPTIONAL_PACKAGES[package]}", file=sys.stderr)
+        return 2
+
+
+#: Packages of an optional extra, and how to install them.
+OPTIONAL_PACKAGES = {name: "'dualarm[export]'" for name in
+                     ("toppra", "rosbags", "onnx", "onnxscript", "onnxruntime")}
+OPTIONAL_PACKAGES["ray"] = "'dualarm[ray]'"
 
 
 if __name__ == "__main__":
