@@ -439,35 +439,7 @@ def test_behaviour_cloning_pulls_the_actor_to_better_demonstrations():
     assert miss_after(5.0) < 0.5 * miss_after(0.0)
 
 
-def test_cloning_updates_fit_the_demonstrated_actions_and_train_the_critic_by_eq_13():
-    """update(clone=True): the actors move to the demonstrated actions whatever the critic says
-    (the demonstrations here pay nothing, so Q-filtered cloning would not pull them), the
-    critic's step is Eq. 13's, and adopting the online actors makes the run's policy the
-    cloned one."""
-    agent = small_agent(actor_lr=1e-3, policy_average=0.01, demo_batch_size=8, pretrain_updates=1)
-    batch = random_batch(b=16, rew=torch.zeros(16, 2))
-    batch["act"][:] = torch.tensor([0.8, -0.6, 0.4]) * agent.action_mask[:, 0]
-    o = agent.normalizer.normalize(batch["obs"]).transpose(0, 1)
-    before = float(agent.clone_loss(o, batch["act"].transpose(0, 1)))
-    reference = small_agent()
-    reference.critic.load_state_dict(agent.critic.state_dict())
-    reference.update(batch)
-    agent.update(batch, clone=True)
-    for mine, theirs in zip(agent.critic.parameters(), reference.critic.parameters()):
-        torch.testing.assert_close(mine, theirs)                 # the same critic step
-    for _ in range(200):
-        agent.update(batch, clone=True)
-    assert float(agent.clone_loss(o, batch["act"].transpose(0, 1))) < 0.05 * before
-    agent.adopt_online_actors()
-    with torch.no_grad():
-        obs = batch["obs"].transpose(0, 1)
-        for which in ("target", "average"):
-            torch.testing.assert_close(agent.policy(obs, False, which), agent.policy(obs, True))
-
-
 def test_demo_settings_are_validated():
-    with pytest.raises(ValueError, match="pretrain_updates"):
-        DADDPGConfig(pretrain_updates=10)                        # nothing to pretrain on
     with pytest.raises(ValueError, match="demo_batch_size"):
         DADDPGConfig(demo_batch_size=-1)
     with pytest.raises(ValueError, match="bc_weight"):

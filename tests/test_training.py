@@ -412,7 +412,7 @@ def test_far_action_l2_weighs_the_penalty_by_the_distance_to_the_box(tmp_path):
         torch.testing.assert_close(w, torch.tensor([[0.5, 0.5], [0.001, 0.001], [0.001, 0.5]]))
         seen = []
         update = trainer.agent.update
-        trainer.agent.update = lambda batch, rows=0, clone=False: seen.append(batch["penalty_weight"]) or update(batch, rows, clone)
+        trainer.agent.update = lambda batch, rows=0: seen.append(batch["penalty_weight"]) or update(batch, rows)
         trainer.run()
         assert seen and all(b.shape == (16, 2) for b in seen)
     finally:
@@ -480,7 +480,7 @@ def test_approach_shaping_is_potential_based_on_the_grip_to_box_distance(tmp_pat
             [[g * -0.2 + 1.0, g * -0.4 + 0.4], [1.0, 0.4]]))
         seen = []
         update = trainer.agent.update
-        trainer.agent.update = lambda batch, demo_rows=0, clone=False: seen.append(batch) or update(batch, demo_rows, clone)
+        trainer.agent.update = lambda batch, demo_rows=0: seen.append(batch) or update(batch, demo_rows)
         trainer.run()
         assert seen and all(b["shaping"].shape == (config.algo.batch_size, 2) for b in seen)
     finally:

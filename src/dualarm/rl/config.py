@@ -17,7 +17,7 @@ EVAL_ACTORS = ("online", "target", "average")
 REMOVED_FIELDS = {"noise": "gaussian", "value_rescale": False, "advantage_learning": 0.0,
                   "ou_theta": ANY, "grip_hold_eps": 0.0, "grip_hold_steps": ANY,
                   "free_grip": False, "critic_layer_norm": False, "random_grip": True,
-                  "policy_delay": 1}
+                  "policy_delay": 1, "pretrain_updates": 0}
 
 
 def _upgrade(d: dict, where: str) -> dict:
@@ -90,11 +90,6 @@ class DADDPGConfig:
     bc_weight: float = 0.0
     """Weight of the behaviour-cloning term on the demonstration rows of a batch, Q-filtered:
     only where the critic rates the demonstrated action above the actor's (Nair et al. 2018)."""
-    pretrain_updates: int = 0
-    """Updates on the demonstration buffer alone before the first episode: the critics by
-    Eq. 13 and the actors by behaviour cloning only (the demonstrated actions, unfiltered; the
-    pretraining of DDPGfD, Vecerik et al. 2017, and DAPG, Rajeswaran et al. 2018), then the
-    target and averaged actors set to the cloned ones. Needs ``demo_batch_size``. 0: none."""
     n_step: int = 1
     """Steps of real rewards in each critic target before it bootstraps (n-step returns,
     Sutton 1988; Rainbow and FastTD3 use 3): y = sum_k gamma^k r_k + gamma^m Q'(s_m), m <= n,
@@ -133,8 +128,6 @@ class DADDPGConfig:
             "twin_min_weight": 0 <= self.twin_min_weight <= 1 and (self.twin_critics or self.twin_min_weight == 1),
             "updates_per_step": self.updates_per_step >= 0, "n_step": self.n_step >= 1,
             "demo_batch_size": self.demo_batch_size >= 0, "bc_weight": self.bc_weight >= 0,
-            "pretrain_updates": self.pretrain_updates >= 0 and (self.demo_batch_size > 0
-                                                                or self.pretrain_updates == 0),
             "warmup_steps": self.warmup_steps >= 0, "eval_actor": self.eval_actor in EVAL_ACTORS,
             "policy_average": 0 <= self.policy_average <= 1,
         }

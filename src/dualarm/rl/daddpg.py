@@ -200,13 +200,6 @@ class DADDPG:
         low = q.min(dim=0).values
         return low if beta == 1 else beta * low + (1 - beta) * q.mean(dim=0)
 
-    def clone_loss(self, o: torch.Tensor, a_taken: torch.Tensor) -> torch.Tensor:
-        """Behaviour cloning alone, summed over agents: the mean squared distance of the actors'
-        actions mu_i(s_i) from the demonstrated ones (normalised obs (A, B, O), actions
-        (A, B, U))."""
-        a_pi = self.actor(o) * self.action_mask
-        return ((a_pi - a_taken) ** 2).sum(-1).mean(dim=1).sum()
-
     def actor_loss(self, o: torch.Tensor, q_taken: torch.Tensor, a_taken: torch.Tensor,
                    demo_rows: int = 0, penalty_weight: torch.Tensor | None = None) -> torch.Tensor:
         """Eq. 14 as a loss: -Q_i(s, mu_i(s_i)) through the actor only, plus the action
@@ -239,8 +232,7 @@ class DADDPG:
             torch._foreach_lerp_(list(self.actor_average.parameters()), list(self.actor.parameters()),
                                  self.config.policy_average)
 
-    def update(self, batch: dict[str, torch.Tensor], demo_rows: int = 0,
-               clone: bool = False) -> dict[str, float]:
+    def update(self, batch: dict[str, torch.Tensor], demo_rows: int = 0) -> dict[str, float]:
         """One gradient step of both agents' critics (Eq. 13) and actors (Eq. 14), then the
         target networks (Eq. 15).
 
@@ -253,8 +245,6 @@ class DADDPG:
                 on the bootstrapped value in place of gamma (gamma^m where rew sums m steps).
             demo_rows: the last ``demo_rows`` rows of the batch are demonstrations (see
                 :meth:`actor_loss`).
-            clone: the batch is all demonstrations and the actors learn by behaviour cloning
-                alone (``clone_loss``; ``pretrain_updates``).
 
         Returns:
             {"critic_loss", "actor_loss", "q_mean"} summed or averaged over agents.
@@ -281,8 +271,7 @@ class DADDPG:
         weight = batch.get("penalty_weight")
         if weight is not None:
             weight = weight.transpose(0, 1).unsqueeze(-1)          # (A, B, 1)
-        actor_loss = (self.clone_loss(o, a_taken) if clone
-                      else self.actor_loss(o, q, a_taken, demo_rows, weight))
+        actor_loss = self.actor_loss(o, q, a_taken, demo_rows, weight)
 
         if not (torch.isfinite(critic_loss) and torch.isfinite(actor_loss)):
             raise NonFiniteLoss(f"non-finite loss at update {self.updates + 1}: critic "
@@ -300,14 +289,6 @@ class DADDPG:
         self.updates += 1
         return {"critic_loss": critic_loss.item(), "actor_loss": actor_loss.item(),
                 "q_mean": self.q_total(q[0]).mean().item()}
-
-    @torch.no_grad()
-    def adopt_online_actors(self) -> None:
-        """Set the target and averaged actors to the online ones (after pretraining, so that
-        the run's policy starts as the cloned one rather than a blend with the random start)."""
-        self.actor_target.load_state_dict(self.actor.state_dict())
-        if self.actor_average is not None:
-            self.actor_average.load_state_dict(self.actor.state_dict())
 
     def _clip(self, net: torch.nn.Module) -> None:
         """Scale each agent's gradients so that their global norm is at most grad_clip."""

@@ -210,8 +210,6 @@ class Trainer:
                 raise InputError(f"{paths.root} already holds a run: resume it with "
                                  f"`dualarm train --resume {paths.root}` or choose another --out")
             trainer = cls(config, paths, make_env, progress)
-            if config.algo.pretrain_updates:
-                trainer.pretrain()
             source = config.constraints_file() if make_env is None else None
             if source is not None:
                 atomic_copy(source, paths.constraints)
@@ -250,8 +248,6 @@ class Trainer:
             trainer = cls(config, paths, make_env, progress)
             if paths.latest.exists():
                 trainer.load(load_checkpoint(paths.latest))
-            elif config.algo.pretrain_updates:        # killed before its first checkpoint
-                trainer.pretrain()
             if episodes is not None and episodes < trainer.episodes:
                 raise InputError(f"{paths.root}: the run has done {trainer.episodes} episodes, "
                                  f"more than --episodes {episodes}; nothing was changed")
@@ -416,21 +412,11 @@ class Trainer:
             losses.append(self._apply(batch, demo_rows))
         return losses
 
-    def pretrain(self) -> None:
-        """``algo.pretrain_updates`` updates on the demonstrations alone (critics by Eq. 13,
-        actors by behaviour cloning), before the first episode; its own random stream, so the
-        run's is the same with or without it."""
-        a = self.config.algo
-        rng = np.random.default_rng([self.config.seed, 2])
-        for _ in range(a.pretrain_updates):
-            self._apply(self.demos.sample(rng, a.batch_size), 0, clone=True)
-        self.agent.adopt_online_actors()
-
-    def _apply(self, batch: dict, demo_rows: int, clone: bool = False) -> dict:
+    def _apply(self, batch: dict, demo_rows: int) -> dict:
         """One update of the agent on ``batch``, with the trainer's penalty weights and shaping."""
         self.batch_shaping.apply(batch)
         try:
-            return self.agent.update(batch, demo_rows, clone)
+            return self.agent.update(batch, demo_rows)
         except NonFiniteLoss as exc:
             raise TrainingDiverged(
                 f"training stopped in the round after episode {self.episodes}: {exc}. "
