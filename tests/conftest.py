@@ -26,3 +26,17 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "paper_scale" in item.keywords:
             item.add_marker(skip)
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    """The shipped demonstration folder as replays read it, with an environment to replay in:
+    (env, recordings, labels by name, scenes by name)."""
+    from dualarm.demos.formats import DEFAULT_DEMO_DIR
+    from dualarm.envs import make_core
+    from dualarm.sim_demos.replay import load_replay_folder
+
+    env = make_core()
+    demos, labels, scenes = load_replay_folder(DEFAULT_DEMO_DIR, env.config.workspace())
+    yield env, demos, labels, scenes
+    env.close()

@@ -5,19 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dualarm.demos.formats import DEFAULT_DEMO_DIR
 from dualarm.demos.scene import Scene
-from dualarm.envs import make_core
 from dualarm.sim_demos.augment import augment, move_path, random_placement, segment_steps
-from dualarm.sim_demos.replay import demonstration_path, follow_path, load_replay_folder
-
-
-@pytest.fixture(scope="module")
-def shipped():
-    env = make_core()
-    demos, labels, scenes = load_replay_folder(DEFAULT_DEMO_DIR, env.config.workspace())
-    yield env, demos, labels, scenes
-    env.close()
+from dualarm.sim_demos.replay import demonstration_path, follow_path
 
 
 def test_move_path_follows_the_box_then_the_target_segment_by_segment():

@@ -9,16 +9,8 @@ from dualarm.cli.main import main
 from dualarm.demos.formats import DEFAULT_DEMO_DIR
 from dualarm.demos.scene import Scene
 from dualarm.envs import make_core
-from dualarm.sim_demos.replay import (DEFAULT_STEPS, load_replay_folder, replay_demonstration,
+from dualarm.sim_demos.replay import (DEFAULT_STEPS, replay_demonstration,
                                       retime, task_window)
-
-
-@pytest.fixture(scope="module")
-def shipped():
-    env = make_core()
-    demos, labels, scenes = load_replay_folder(DEFAULT_DEMO_DIR, env.config.workspace())
-    yield env, demos, labels, scenes
-    env.close()
 
 
 def test_a_placement_puts_the_boxes_and_targets_where_it_says():
