@@ -112,6 +112,8 @@ def test_ros2_bag_reads_back_point_for_point(tmp_path):
     write_ros2_bag(tmp_path / "bag", samples, start_ns=1_700_000_000_000_000_000)
     assert sorted(p.name for p in (tmp_path / "bag").iterdir()) == ["bag.mcap", "metadata.yaml"]
     assert [p.name for p in tmp_path.iterdir()] == ["bag"]          # no temporary left over
+    write_ros2_bag(tmp_path / "new" / "folder" / "bag", samples)    # made, as other formats do
+    assert (tmp_path / "new" / "folder" / "bag" / "metadata.yaml").is_file()
     msgs = read_ros2_trajectories(tmp_path / "bag")
     arm = msgs[TOPICS["trajectory"]]
     assert list(arm.joint_names) == [c for c in CSV_COLUMNS[1:15]]

@@ -95,6 +95,7 @@ def write_ros2_bag(path: str | Path, samples: Samples, start_ns: int | None = No
     grip_points = [JTP(positions=grip[k], velocities=grip_rate[k], accelerations=empty,
                        effort=empty, time_from_start=_stamp(types, t_ns[k], "Duration"))
                    for k in range(len(t_ns))]
+    path.parent.mkdir(parents=True, exist_ok=True)      # as every other format's writer does
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
     bag = tmp / path.name
     try:
