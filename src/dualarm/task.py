@@ -41,5 +41,7 @@ PAPER_REACH_BONUS = 1.0
 PAPER_GRASP_BONUS = 20.0
 PAPER_COORDINATE_BONUS = 4000.0
 PAPER_C0 = (0.01, 0.01, 0.05)
+#: The largest seed of a run or an episode: numpy's seeds are unsigned 32-bit here.
+MAX_SEED = 2 ** 32 - 1
 #: The success rate of the paper's "episodes to 0.85" (Section 3.2.2).
 TARGET_SUCCESS = 0.85

@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 from dualarm.locks import LOCK_NAME
+from dualarm.task import MAX_SEED
 
 
 def _number(text: str, kind=float):
@@ -29,10 +30,10 @@ def positive_int(text: str) -> int:
 
 
 def seed_number(text: str) -> int:
-    """A seed: an integer in 0..2**32 - 1 (numpy's seeds are unsigned 32-bit here)."""
+    """A seed: an integer in 0..``MAX_SEED``."""
     value = _number(text, int)
-    if not 0 <= value <= 2 ** 32 - 1:
-        raise argparse.ArgumentTypeError(f"must be in 0..{2 ** 32 - 1}, got {text!r}")
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"must be in 0..{MAX_SEED}, got {text!r}")
     return value
 
 

@@ -336,7 +336,7 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
             base=TrainConfig.from_dict(base_dict(base), where=request.base_source,
                                       base=TrainConfig.paper()),
             constraints_dir=given_dir,
-            demos_dir=_demos_dir(conditions, request.demos_dir))
+            demos_dir=_demos_dir(conditions, request.demos_dir, base))
     else:
         if request.base is not None:
             diff = differences(base_dict(existing.base), base_dict(request.base))
@@ -363,7 +363,7 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
             root=root, id=existing.id, conditions=conditions, seeds=seeds,
             episodes=max(existing.episodes, request.episodes or 0),
             base=existing.base, constraints_dir=existing.constraints_dir,
-            demos_dir=existing.demos_dir or _demos_dir(conditions, given_demos))
+            demos_dir=existing.demos_dir or _demos_dir(conditions, given_demos, existing.base))
 
     copies = _constraint_copies(comparison, given_dir)
     for plan in comparison.runs():
@@ -374,9 +374,10 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
     return comparison
 
 
-def _demos_dir(conditions: tuple[str, ...], given: Path | None) -> Path | None:
+def _demos_dir(conditions: tuple[str, ...], given: Path | None, base: TrainConfig) -> Path | None:
     """The demonstration folder of the ``demos`` condition (``given``, or the shipped set),
-    checked as training will read it (recordings, labels, scene); None without the condition.
+    checked as training will read it (recordings, labels, and scene within ``base``'s task
+    workspace); None without the condition.
 
     Raises:
         InputError: the folder, a recording, its labels or its scene is missing or bad.
@@ -384,13 +385,12 @@ def _demos_dir(conditions: tuple[str, ...], given: Path | None) -> Path | None:
     if DEMOS_CONDITION not in conditions:
         return None
     from dualarm.demos.formats import DEFAULT_DEMO_DIR
-    from dualarm.envs.config import TaskConfig
     from dualarm.sim_demos.replay import load_replay_folder
 
     folder = (given or DEFAULT_DEMO_DIR).resolve()
     if not folder.is_dir():
         raise InputError(f"{folder}: --demos is not a directory")
-    load_replay_folder(folder, TaskConfig().workspace())
+    load_replay_folder(folder, base.task_config().workspace())
     return folder
 
 

@@ -17,11 +17,9 @@ import yaml
 from dualarm.errors import InputError
 from dualarm.rl.config import REMOVED_FIELDS as ALGO_REMOVED_FIELDS
 from dualarm.rl.config import DADDPGConfig
+from dualarm.task import MAX_SEED
 from dualarm.typed_fields import check_field_types, drop_removed_fields
 from dualarm.yaml_io import read_yaml
-
-#: The largest seed of a run (and of a comparison's runs).
-MAX_SEED = 2 ** 32 - 1
 
 #: TaskConfig fields a run may override (the rest keep the task's defaults).
 TASK_OVERRIDES = ("control", "goal", "success_at", "max_episode_steps", "joint_angles_in_obs",
@@ -239,7 +237,7 @@ class TrainConfig:
         for name in ("episodes", "num_envs", "torch_threads"):
             if getattr(self, name) < 1:
                 raise InputError(f"{name} must be at least 1, got {getattr(self, name)}")
-        if not 0 <= self.seed <= MAX_SEED:            # numpy's seeds are unsigned 32-bit here
+        if not 0 <= self.seed <= MAX_SEED:
             raise InputError(f"seed must be in 0..{MAX_SEED}, got {self.seed}")
         for name in ("eval_every", "eval_episodes", "checkpoint_every", "demo_episodes"):
             if getattr(self, name) < 0:
