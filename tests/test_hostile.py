@@ -376,3 +376,16 @@ def test_an_unreachable_ray_cluster_is_refused_before_anything_is_written(tmp_pa
     assert main(["compare", "--backend", "ray", "--ray-address", f"127.0.0.1:{port}",
                  "--conditions", "none", "--seeds", "0", "--episodes", "1", "-o", str(out)]) == 2
     assert "nothing answers there" in capsys.readouterr().err and not out.exists()
+
+
+def test_seeds_beyond_numpys_range_are_refused_where_they_are_given(tmp_path, capsys):
+    """compare --seeds 2**64 (was accepted, then its worker crashed), export/play --seed -1
+    (a traceback): one line each, nothing written."""
+    out = tmp_path / "cmp"
+    assert main(["compare", "--seeds", str(2 ** 64), "--conditions", "none", "-o", str(out)]) == 2
+    assert "0..4294967295" in capsys.readouterr().err and not out.exists()
+    for argv in (["export", str(tmp_path / "t.csv"), "-o", str(tmp_path / "o.csv"), "--seed", "-1"],
+                 ["play", str(tmp_path), "-o", str(tmp_path / "v.mp4"), "--seed", "-1"]):
+        with pytest.raises(SystemExit) as exit_:
+            main(argv)
+        assert exit_.value.code == 2 and "--seed: must be in 0.." in capsys.readouterr().err

@@ -57,7 +57,7 @@ def grid_options(p: argparse.ArgumentParser, seeds: str = "0,1,2",
                         f"as demonstrations, with the multi constraints; default: {conditions}, "
                         "or the comparison's)")
     p.add_argument("--seeds", metavar="S1,S2,...",
-                   help=f"seeds, integers >= 0 (default: {seeds}, or the comparison's)")
+                   help=f"seeds, integers in 0..2**32 - 1 (default: {seeds}, or the comparison's)")
     p.add_argument("--workers", type=positive_int, metavar="W",
                    help=f"runs at a time (default local: {workers}; ray: as many as the "
                         "cluster has CPUs for)")

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 
-from dualarm.cli.arguments import FigureFile, InputPath, NewOutput, positive
+from dualarm.cli.arguments import FigureFile, InputPath, NewOutput, positive, seed_number
 from dualarm.errors import InputError
 
 FORMATS = {
@@ -129,7 +129,7 @@ def add_export_command(sub) -> None:
                         help="the file (csv, baxter, onnx) or bag folder (ros2) to create")
     export.add_argument("--format", choices=tuple(FORMATS), default="csv",
                         help="csv (default), baxter, ros2 or onnx")
-    export.add_argument("--seed", type=int, default=0, help="the episode's placement seed (default 0)")
+    export.add_argument("--seed", type=seed_number, default=0, help="the episode's placement seed (default 0)")
     export.add_argument("--checkpoint", choices=("best", "latest"), default="best",
                         help="the best evaluated policy or the last checkpoint (default: best)")
     export.add_argument("--retime", action="store_true",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from dualarm.cli.arguments import VideoFile, frame_rate, run_options
+from dualarm.cli.arguments import VideoFile, frame_rate, run_options, seed_number
 from dualarm.cli.env import frame_options, with_end_pause
 
 
@@ -30,7 +30,7 @@ def add_play_command(sub) -> None:
     run_options(play)
     play.add_argument("-o", "--output", type=VideoFile, required=True, metavar="FILE.mp4|.gif",
                       help="the video to write")
-    play.add_argument("--seed", type=int, default=0, help="the episode's reset seed (default 0)")
+    play.add_argument("--seed", type=seed_number, default=0, help="the episode's reset seed (default 0)")
     frame_options(play)
     play.add_argument("--fps", type=frame_rate, default=12.0,
                       help="frames per second of the video (default 12)")

@@ -27,7 +27,7 @@ from dualarm.errors import InputError
 from dualarm.experiments.backends import MANIFEST, RunOutcome, RunTask, logged_episodes, read_done
 from dualarm.locks import DirectoryLock
 from dualarm.task import (CONDITIONS, COMPARED_CONDITIONS, DEMOS_CONDITION, GUIDED_CONDITIONS,
-                          guide_condition)
+                          MAX_SEED, guide_condition)
 from dualarm.training.config import TrainConfig
 from dualarm.training.run_dir import RunPaths
 from dualarm.yaml_io import read_yaml
@@ -257,8 +257,9 @@ def _conditions(values, where: str) -> tuple[str, ...]:
 
 def _seeds(values, where: str) -> tuple[int, ...]:
     values = list(values)
-    if not values or any(not isinstance(s, int) or isinstance(s, bool) or s < 0 for s in values):
-        raise InputError(f"{where}: seeds must be integers >= 0, got {values}")
+    if not values or any(not isinstance(s, int) or isinstance(s, bool) or not 0 <= s <= MAX_SEED
+                         for s in values):
+        raise InputError(f"{where}: seeds must be integers in 0..{MAX_SEED}, got {values}")
     return tuple(sorted(set(values)))
 
 
