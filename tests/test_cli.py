@@ -229,6 +229,28 @@ def test_every_option_of_every_command_says_what_it_does():
     assert not missing, missing
 
 
+def test_each_concept_has_one_spelling_across_commands():
+    """Walk the whole argparse tree: an option's destination has one spelling (its first long
+    option) in every command, and no two spellings differ only by a plural or a "-dir" (as
+    --actor/--actors and --demos/--demo-dir once did). Older spellings stay as aliases after
+    the one spelling."""
+    import argparse
+    import re
+
+    from dualarm.cli.main import build_parser
+
+    spellings, stems = {}, {}
+    for path, a in _walk(build_parser()):
+        long = [f for f in a.option_strings if f.startswith("--")]
+        if not long or isinstance(a, argparse._HelpAction):
+            continue
+        spellings.setdefault(a.dest, set()).add(long[0])
+        stems.setdefault(re.sub(r"(-dir|s)$", "", long[0][2:]), set()).add(long[0])
+    assert not {d: s for d, s in spellings.items() if len(s) > 1}
+    lists = {"condition", "seed"}     # one in train, a list of them in compare and pipeline
+    assert not {stem: s for stem, s in stems.items() if len(s) > 1 and stem not in lists}
+
+
 def test_a_missing_optional_package_is_one_line_naming_the_extra(tmp_path, monkeypatch, capsys):
     import sys
 

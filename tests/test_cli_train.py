@@ -99,7 +99,8 @@ def test_eval_with_the_target_actors_acts_with_the_latest_checkpoints_averages(t
 
 
 def test_eval_from_later_starts_puts_both_arms_there(run_dir, capsys, monkeypatch):
-    """--start align: every evaluation episode begins with both arms holding their boxes."""
+    """--start align: every evaluation episode begins with both arms holding their boxes;
+    several starts give one evaluation each, in order (as diagnose's --start)."""
     from dualarm.training import evaluation
 
     starts = []
@@ -114,6 +115,10 @@ def test_eval_from_later_starts_puts_both_arms_there(run_dir, capsys, monkeypatc
     assert main(["eval", str(run_dir), "--episodes", "3", "--start", "align"]) == 0
     assert "both arms starting at align" in capsys.readouterr().out
     assert (starts[0] == 2).all()
+    assert main(["eval", str(run_dir), "--episodes", "2", "--start", "grasp", "align"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("success rate") == 2 and out.index("at grasp") < out.index("at align")
+    assert (starts[1] == 1).all() and (starts[2] == 2).all()
 
 
 def test_diagnose_counts_each_arms_outcome_from_each_start(run_dir, capsys):

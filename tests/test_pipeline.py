@@ -48,7 +48,7 @@ def test_pipeline_extracts_trains_reports_and_resumes(tmp_path, capsys):
 
 def test_pipeline_stops_at_the_failing_step_and_names_it(tmp_path, capsys):
     out = tmp_path / "pipe"
-    assert main(["pipeline", "-o", str(out), "--demo-dir", str(tmp_path / "missing")]) == 2
+    assert main(["pipeline", "-o", str(out), "--demos", str(tmp_path / "missing")]) == 2
     err = capsys.readouterr().err
     assert "stopped at step 1" in err and "missing" in err
     assert not (out / "runs").exists()

@@ -408,7 +408,7 @@ def test_runs_with_later_starts_are_measured_on_their_evaluations(tmp_path):
 
 
 def test_the_averaged_actors_evaluations_are_read_on_request(tmp_path, capsys):
-    """`--actors average` reads eval.csv's average_success_rate (the averaged actors, evaluated
+    """`--actor average` reads eval.csv's average_success_rate (the averaged actors, evaluated
     beside the run's policy): episodes to target and max success follow that column, and a
     run without it is an error naming the file and the column."""
     e = np.arange(1, 401)
@@ -427,7 +427,7 @@ def test_the_averaged_actors_evaluations_are_read_on_request(tmp_path, capsys):
     assert avg.final_eval_success.values.tolist() == [0.7]
     assert report.actors == "average" and any("averaged actors" in n for n in report.notes)
     assert main(["report", str(tmp_path), "-o", str(tmp_path / "rep"), "--window", "50",
-                 "--actors", "average"]) == 0
+                 "--actor", "average"]) == 0
     assert "averaged actors" in (tmp_path / "rep" / "table.md").read_text()
 
     (d / "eval.csv").write_text("episode,success_rate\n100,0.5\n")

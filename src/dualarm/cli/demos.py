@@ -159,7 +159,7 @@ def moved_yield(env, demos, labels, scenes, args) -> None:
 
 def labels_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--labels", type=InputPath, metavar="FILE.csv",
-                   help=f"labels file (demo,arm,subtask,start_s,end_s); default: DEMO_DIR/{LABELS_NAME}")
+                   help=f"labels file (demo,arm,subtask,start_s,end_s); default: the demonstration folder's {LABELS_NAME}")
 
 
 def add_demos_command(sub) -> None:

@@ -16,14 +16,16 @@ def cmd_eval(args: argparse.Namespace) -> int:
     from dualarm.training.policy import load_actors, policy_heading
 
     config, agent, info = load_actors(args.run, args.checkpoint, args.actor)
-    vec = make_vector_env(config, min(config.num_envs, args.episodes), start=SUBTASKS.index(args.start))
-    result = evaluate(lambda o: agent.act(o), vec, args.episodes)
-    start = "" if args.start == "reach" else f", both arms starting at {args.start}"
-    print(f"{policy_heading(info)}, "
-          f"{args.episodes} evaluation episodes{start}:")
-    print(f"  success rate  {result.success_rate:.3f} ({int(result.success.sum())}/{args.episodes})")
-    print(f"  return        {result.mean_return:.1f} (mean, both arms)")
-    print(f"  steps         {result.steps.mean():.1f} (mean)")
+    for start in dict.fromkeys(args.start):                      # each start once, in order
+        vec = make_vector_env(config, min(config.num_envs, args.episodes),
+                              start=SUBTASKS.index(start))
+        result = evaluate(lambda o: agent.act(o), vec, args.episodes)
+        where = "" if start == "reach" else f", both arms starting at {start}"
+        print(f"{policy_heading(info)}, "
+              f"{args.episodes} evaluation episodes{where}:")
+        print(f"  success rate  {result.success_rate:.3f} ({int(result.success.sum())}/{args.episodes})")
+        print(f"  return        {result.mean_return:.1f} (mean, both arms)")
+        print(f"  steps         {result.steps.mean():.1f} (mean)")
     return 0
 
 
@@ -34,10 +36,10 @@ def add_eval_command(sub) -> None:
     run_options(ev)
     ev.add_argument("--episodes", type=positive_int, default=100,
                     help="evaluation episodes, each at its own seeded placement (default: 100)")
-    ev.add_argument("--start", choices=SUBTASKS, default="reach",
-                    help="the sub-task both arms start at: reach (the normal reset, default), "
-                         "grasp (at the boxes, fingers open) or align (holding them): how "
-                         "well each link of the task is learned")
+    ev.add_argument("--start", choices=SUBTASKS, nargs="+", default=["reach"],
+                    help="the sub-tasks both arms start at, one evaluation each: reach (the "
+                         "normal reset, default), grasp (at the boxes, fingers open), align "
+                         "(holding them): how well each link of the task is learned")
     ev.add_argument("--actor", choices=EVAL_ACTORS, default=None,
                     help="the actors, the target actors (their Polyak averages, Eq. 15, which "
                          "act more steadily late in a run) or the averaged actors of "

@@ -70,7 +70,7 @@ def add_pipeline_command(sub) -> None:
     grid_options(p, seeds="0", workers="as many as there are runs, at least the CPU count",
                  conditions="the paper's three and demos where the demonstrations have their "
                             "scene file")
-    p.add_argument("--demo-dir", type=InputPath, metavar="DIR",
+    p.add_argument("--demos", "--demo-dir", dest="demo_dir", type=InputPath, metavar="DIR",
                    help=f"demonstrations with {LABELS_NAME}, and {SCENE_NAME} for the demos "
-                        "condition (default: the shipped ones)")
+                        "condition (default: the shipped ones; --demo-dir is the older spelling)")
     p.set_defaults(func=cmd_pipeline)

@@ -63,8 +63,10 @@ def add_report_command(sub) -> None:
                         help="moving-average window, episodes (default: 100)")
     report.add_argument("--target", type=rate, default=TARGET_SUCCESS, metavar="RATE",
                         help="success rate of 'episodes to target' (default: %(default)s)")
-    report.add_argument("--actors", choices=tuple(EVAL_SUCCESS_COLUMNS), default="policy",
+    report.add_argument("--actor", "--actors", dest="actors", choices=tuple(EVAL_SUCCESS_COLUMNS),
+                        default="policy",
                         help="evaluations to read: each run's policy (eval.csv success_rate, "
                              "the default) or the averaged actors evaluated beside it "
-                             "(average_success_rate; runs with algo.policy_average > 0)")
+                             "(average_success_rate; runs with algo.policy_average > 0); "
+                             "--actors is the older spelling")
     report.set_defaults(func=cmd_report)
