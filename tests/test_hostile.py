@@ -196,6 +196,18 @@ CASES = [
     Case("env-constraints-missing", "env strip --condition multi --constraints nope.yaml -o s.png", "nope.yaml"),
     Case("pipeline-output-is-file", "pipeline -o rec.csv", "is an existing file"),
     Case("report-onto-input", "report run -o run", "is also the input"),
+    # ---- sizes: numbers that decide the work are bounded before anything is allocated
+    Case("export-rate-huge", "export run -o o.csv --format baxter --rate 1e15", "at most 1000.0 Hz"),
+    Case("export-velocity-scale-tiny", "export run -o o.csv --format baxter --velocity-scale 1e-300",
+         "must be in [0.01, 1]"),
+    Case("export-time-span-huge", "export span.csv -o o.csv --format baxter", "span.csv: column time spans 1e+09 s",
+         {"span.csv": "time," + ",".join(f"{a}_{j}" for a in ("left", "right")
+                                          for j in ("s0", "s1", "e0", "e1", "w0", "w1", "w2"))
+          + ",grip_left,grip_right\n0" + ",0" * 16 + "\n1e9" + ",0.1" * 14 + ",0,0\n"}),
+    Case("config-hidden-huge", "train --config bad.yaml --out r", "hidden: invalid value (1000000000000,) (1 to 8 layers",
+         config("algo: {hidden: [1000000000000]}\n")),
+    Case("config-buffer-huge", "train --config bad.yaml --out r", "buffer_size: invalid value",
+         config("algo: {buffer_size: 100000000000}\n")),
     Case("report-missing", "report nowhere", "nowhere"),
 ]
 

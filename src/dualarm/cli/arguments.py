@@ -73,6 +73,29 @@ def positive(text: str) -> float:
     return value
 
 
+def limit_scale(text: str) -> float:
+    """A fraction of the robot's limits: a number in [``MIN_SCALE``, 1]."""
+    from dualarm.export.retime import MIN_SCALE
+
+    value = _number(text)
+    if not MIN_SCALE <= value <= 1:
+        raise argparse.ArgumentTypeError(f"must be in [{MIN_SCALE}, 1], got {text!r}")
+    return value
+
+
+def sample_rate(text: str) -> float:
+    """Samples per second of an exported trajectory: a number in (0, ``MAX_RATE_HZ``]."""
+    value = positive(text)
+    if value > MAX_RATE_HZ:
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_RATE_HZ} Hz, got {text!r}")
+    return value
+
+
+#: Fastest export rate: 10 times Baxter's 100 Hz joint_recorder, and more than any command
+#: interface takes.
+MAX_RATE_HZ = 1000.0
+
+
 def rate(text: str) -> float:
     """A success rate in (0, 1]."""
     value = _number(text)

@@ -6,7 +6,8 @@ import argparse
 from pathlib import Path
 
 
-from dualarm.cli.arguments import FigureFile, InputPath, NewOutput, positive, seed_number
+from dualarm.cli.arguments import (FigureFile, InputPath, NewOutput, limit_scale, sample_rate,
+                                   seed_number)
 from dualarm.errors import InputError
 
 FORMATS = {
@@ -134,13 +135,13 @@ def add_export_command(sub) -> None:
                         help="the best evaluated policy or the last checkpoint (default: best)")
     export.add_argument("--retime", action="store_true",
                         help="csv only: time-parameterise as baxter and ros2 always are")
-    export.add_argument("--rate", type=positive, default=100.0, metavar="HZ",
-                        help="sample rate of time-parameterised output (default 100 Hz, as "
-                             "Baxter's joint_recorder)")
-    export.add_argument("--velocity-scale", type=positive, default=1.0, metavar="S",
-                        help="fraction of Baxter's velocity limits to use, in (0, 1] (default 1)")
-    export.add_argument("--acceleration-scale", type=positive, default=1.0, metavar="S",
-                        help="fraction of the acceleration limits to use, in (0, 1] (default 1)")
+    export.add_argument("--rate", type=sample_rate, default=100.0, metavar="HZ",
+                        help="sample rate of time-parameterised output, at most 1000 Hz "
+                             "(default 100 Hz, as Baxter's joint_recorder)")
+    export.add_argument("--velocity-scale", type=limit_scale, default=1.0, metavar="S",
+                        help="fraction of Baxter's velocity limits to use, in [0.01, 1] (default 1)")
+    export.add_argument("--acceleration-scale", type=limit_scale, default=1.0, metavar="S",
+                        help="fraction of the acceleration limits to use, in [0.01, 1] (default 1)")
     export.add_argument("--plot", type=FigureFile, metavar="FILE.png",
                         help="also plot position, velocity and acceleration per joint against the limits")
     export.add_argument("--replay", action="store_true",

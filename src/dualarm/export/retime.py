@@ -32,6 +32,12 @@ BAXTER_MAX_ACCELERATION = (4.0, 4.0, 4.0, 4.0, 8.0, 8.0, 8.0)
 #: Gripper closure rate (1/s: open to closed in 0.5 s) and its rate of change (1/s^2).
 GRIP_MAX_VELOCITY = 2.0
 GRIP_MAX_ACCELERATION = 20.0
+#: Smallest velocity or acceleration scale: 1 % of Baxter's limits (below it the arm barely
+#: moves, and a traversal's duration runs towards infinity).
+MIN_SCALE = 0.01
+#: Most samples one export writes (about 2.8 h at 100 Hz): the rate times the duration is
+#: bounded before anything is allocated.
+MAX_SAMPLES = 1_000_000
 
 
 class RetimeError(DualarmError):
@@ -58,8 +64,8 @@ class Limits:
     def baxter(cls, velocity_scale: float = 1.0, acceleration_scale: float = 1.0) -> "Limits":
         """Baxter's limits, each scaled (MoveIt's velocity and acceleration scaling factors)."""
         for name, value in (("velocity scale", velocity_scale), ("acceleration scale", acceleration_scale)):
-            if not 0 < value <= 1:
-                raise InputError(f"the {name} must be in (0, 1], got {value}")
+            if not MIN_SCALE <= value <= 1:
+                raise InputError(f"the {name} must be in [{MIN_SCALE}, 1], got {value}")
         return cls(np.tile(BAXTER_MAX_VELOCITY, 2) * velocity_scale,
                    np.tile(BAXTER_MAX_ACCELERATION, 2) * acceleration_scale,
                    GRIP_MAX_VELOCITY * velocity_scale, GRIP_MAX_ACCELERATION * acceleration_scale)
@@ -129,7 +135,11 @@ class Retimed:
         last sample is at the end exactly)."""
         if not rate_hz > 0:
             raise InputError(f"the rate must be positive, got {rate_hz}")
-        n = int(np.floor(self.duration * rate_hz + 1e-9)) + 1
+        count = self.duration * rate_hz
+        if not count < MAX_SAMPLES:
+            raise InputError(f"the rate {rate_hz:g} Hz over the trajectory's {self.duration:g} s "
+                             f"asks for {count:.3g} samples; at most {MAX_SAMPLES:,}: lower the rate")
+        n = int(np.floor(count + 1e-9)) + 1
         t = np.arange(n) / rate_hz
         if t[-1] < self.duration - 1e-9:
             t = np.append(t, self.duration)
@@ -221,7 +231,7 @@ def retime(trajectory: JointTrajectory, limits: Limits | None = None, never_fast
                                                      / np.maximum(sd[:-1] + sd[1:], 1e-12))])
         result = Retimed(trajectory, np.interp(time, data.gridpoints, grid_time),
                          float(traj.duration), limits, traj)
-        check = result.sample(1000.0)
+        check = result.sample(min(1000.0, (MAX_SAMPLES - 1) / max(result.duration, 1e-9)))
         excess = max(float((np.abs(check.velocity) / limits.velocity).max()),
                      float((np.abs(check.acceleration) / limits.acceleration).max()))
         if excess <= 1 + tolerance:

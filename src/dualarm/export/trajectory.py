@@ -28,6 +28,10 @@ POSITION_LIMITS = np.vstack([BAXTER_JOINT_LIMITS, BAXTER_JOINT_LIMITS])
 LIMIT_SLACK = 1e-6
 
 
+#: Longest trajectory exported, s: a robot task of minutes, with room to spare; longer spans
+#: are a unit mistake (ms for s) and would ask the retimer for billions of samples.
+MAX_DURATION_S = 3600.0
+
 @dataclass(frozen=True)
 class JointTrajectory:
     """Both arms' joints and grips on one time axis.
@@ -45,7 +49,8 @@ class JointTrajectory:
     def check(self, where: str = "trajectory") -> "JointTrajectory":
         """Raise ``InputError`` naming ``where``, the row and the column for anything a robot
         must not be sent: fewer than 2 points, non-increasing time, NaN or infinite values,
-        a joint outside Baxter's limits or a grip outside [0, 1]. Returns self."""
+        a joint outside Baxter's limits, a grip outside [0, 1] or a span over
+        ``MAX_DURATION_S``. Returns self."""
         t, q, g = self.time, self.joints, self.grip
         if t.ndim != 1 or q.shape != (len(t), 14) or g.shape != (len(t), 2):
             raise InputError(f"{where}: expected time (T,), joints (T, 14), grip (T, 2); got "
@@ -58,6 +63,9 @@ class JointTrajectory:
             if len(bad):
                 raise InputError(f"{where}: row {bad[0] + 1}, column {name}: {values[bad[0], 0]} "
                                  "is not a finite number")
+        if t[-1] - t[0] > MAX_DURATION_S:
+            raise InputError(f"{where}: column time spans {t[-1] - t[0]:g} s; a trajectory to "
+                             f"export spans at most {MAX_DURATION_S:g} s (an hour)")
         step = np.diff(t)
         if (step <= 0).any():
             k = int(np.flatnonzero(step <= 0)[0])

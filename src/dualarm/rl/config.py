@@ -32,6 +32,14 @@ def _upgrade(d: dict, where: str) -> dict:
     return drop_removed_fields(d, REMOVED_FIELDS, where)
 
 
+#: Size bounds: these fields decide memory before the first step (a network of width 10**12
+#: asks for petabytes), so they are bounded where the config is read.
+MAX_LAYERS, MAX_WIDTH = 8, 4096
+MAX_BATCH, MAX_BUFFER = 65_536, 10_000_000
+SIZE_BOUNDS = {"hidden": f" (1 to {MAX_LAYERS} layers of 1 to {MAX_WIDTH} units)",
+               "batch_size": f" (1 to {MAX_BATCH})",
+               "buffer_size": f" (batch_size to {MAX_BUFFER:,} transitions)"}
+
 @dataclass(frozen=True)
 class DADDPGConfig:
     """Dual-agent DDPG settings. Defaults start from Plappert et al. 2018 (DDPG+HER on Fetch)
@@ -117,10 +125,11 @@ class DADDPGConfig:
     def __post_init__(self):
         check_field_types(self)
         checks = {
-            "hidden": all(h >= 1 for h in self.hidden) and len(self.hidden) >= 1,
+            "hidden": 1 <= len(self.hidden) <= MAX_LAYERS
+                      and all(1 <= h <= MAX_WIDTH for h in self.hidden),
             "actor_lr": self.actor_lr > 0, "critic_lr": self.critic_lr > 0,
-            "batch_size": self.batch_size >= 1, "gamma": 0 <= self.gamma < 1,
-            "tau": 0 < self.tau <= 1, "buffer_size": self.buffer_size >= self.batch_size,
+            "batch_size": 1 <= self.batch_size <= MAX_BATCH, "gamma": 0 <= self.gamma < 1,
+            "tau": 0 < self.tau <= 1, "buffer_size": self.batch_size <= self.buffer_size <= MAX_BUFFER,
             "noise_std": self.noise_std >= 0, "random_eps": 0 <= self.random_eps <= 1,
             "action_l2": self.action_l2 >= 0, "obs_clip": self.obs_clip > 0,
             "grad_clip": self.grad_clip >= 0, "reward_scale": self.reward_scale > 0,
@@ -134,7 +143,8 @@ class DADDPGConfig:
         bad = [name for name, ok in checks.items() if not ok]
         if bad:
             name = bad[0]
-            raise InputError(f"{name}: invalid value {getattr(self, name)!r}")
+            raise InputError(f"{name}: invalid value {getattr(self, name)!r}"
+                             + SIZE_BOUNDS.get(name, ""))
         if self.eval_actor == "average" and self.policy_average == 0:
             raise InputError("eval_actor: 'average' needs averaged actors (policy_average > 0)")
 
