@@ -401,3 +401,33 @@ def test_seeds_beyond_numpys_range_are_refused_where_they_are_given(tmp_path, ca
         with pytest.raises(SystemExit) as exit_:
             main(argv)
         assert exit_.value.code == 2 and "--seed: must be in 0.." in capsys.readouterr().err
+
+
+def test_a_write_that_fails_names_its_file_and_keeps_the_previous_version(tmp_path):
+    """Under a file-size limit (as on a full disk) a command's output write fails: one line
+    naming the file, exit 2, and the file it would have replaced untouched."""
+    import resource
+    import subprocess
+    import sys
+
+    out = tmp_path / "rec.csv"
+    out.write_text("the previous version\n")
+    limit = lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096))   # noqa: E731
+    done = subprocess.run([sys.executable, "-m", "dualarm.cli.main", "mocap", "example", "-o",
+                           str(tmp_path / "new.csv")],
+                          capture_output=True, text=True, preexec_fn=limit, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert "Traceback" not in done.stderr
+    assert "new.csv: could not be written (File too large" in done.stderr.strip().splitlines()[-1]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.csv"]           # no litter
+    from dualarm.atomic import atomic_open
+    from dualarm.errors import WriteError
+
+    def fail(*_a, **_k):
+        raise OSError(27, "File too large")
+
+    with pytest.raises(WriteError, match="rec.csv: could not be written"):
+        with atomic_open(out) as f:
+            f.write(b"new")
+            fail()
+    assert out.read_text() == "the previous version\n"

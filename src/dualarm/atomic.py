@@ -16,12 +16,16 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import BinaryIO
 
+from dualarm.errors import WriteError
+
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a fresh empty temporary path to write; on success it replaces ``path``.
 
-    The parent folder of ``path`` is created if missing.
+    The parent folder of ``path`` is created if missing. A write that fails (a full disk, a
+    file-size limit: an ``OSError``, or the ``RuntimeError`` torch's writer turns it into)
+    raises ``WriteError`` naming ``path``; the file it would have replaced is left as it was.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -30,6 +34,14 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     try:
         yield tmp
         os.replace(tmp, path)
+    except (OSError, RuntimeError) as exc:
+        tmp.unlink(missing_ok=True)
+        if isinstance(exc, WriteError):
+            raise
+        reason = (exc.strerror if isinstance(exc, OSError) and exc.strerror
+                  else "the writer stopped part-way")
+        raise WriteError(f"{path}: could not be written ({reason}; is the disk full or a "
+                         "file-size limit set?); its previous version, if any, is kept") from exc
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

@@ -35,3 +35,8 @@ class InputError(DualarmError, ValueError):
             where.append(f"column '{column}'")
         prefix = ", ".join(where)
         super().__init__(f"{prefix}: {message}" if prefix else message)
+
+
+class WriteError(DualarmError, OSError):
+    """A file could not be written (a full disk, a file-size limit, a read-only folder); the
+    message names the file, and its previous version, if any, is kept."""

@@ -47,7 +47,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"dualarm: error: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:
-        print(f"dualarm: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
+        where = (f"{exc.filename}: " if exc.filename else "")
+        hint = "" if exc.filename else " (is the disk full or a file-size limit set?)"
+        print(f"dualarm: error: {where}{exc.strerror or exc}{hint}", file=sys.stderr)
         return 2
     except ModuleNotFoundError as exc:
         package = (exc.name or "").split(".")[0]
