@@ -22,24 +22,23 @@ import numpy as np
 import torch
 
 from dualarm.atomic import atomic_copy, leftover_temporaries
-from dualarm.envs.rules import HEAD_TERMS
-from dualarm.training.relabel import ReachRelabeller, TargetRelabeller
 from dualarm.envs.mirror import TaskMirror
 from dualarm.errors import DualarmError, InputError
 from dualarm.locks import DirectoryLock
 from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
-from dualarm.rl.her import HindsightSampler
 from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import TrainConfig
 from dualarm.training.curriculum import START_CLASSES, ReverseCurriculum
-from dualarm.training.demonstrations import (record_expert_demonstrations, record_recording_replays,
-                                             stored_reward)
+from dualarm.training.demonstrations import demonstration_buffer, stored_reward
 from dualarm.training.evaluation import evaluate
 from dualarm.training.exploration import Exploration
 from dualarm.training.rounds import run_round
 from dualarm.training.shaping import BatchShaping
-from dualarm.training.storage import RoundStorage
-from dualarm.training.run_dir import (AVERAGE_EVAL_COLUMNS, EVAL_COLUMNS, CheckpointError, CsvLog,
+from dualarm.training.checkpointing import restore_trainer, trainer_state
+from dualarm.training.records import (episode_rows, eval_row, log_evaluation, log_round,
+                                      metrics_columns)
+from dualarm.training.storage import RoundStorage, hindsight_sampler, reward_heads
+from dualarm.training.run_dir import (AVERAGE_EVAL_COLUMNS, EVAL_COLUMNS, CsvLog,
                                       RunPaths, load_checkpoint, save_checkpoint)
 from dualarm.training.vector import PROBE_SEED_BASE, BaxterVector, ParallelEnvVector, VectorEnv, seeds_for
 
@@ -113,43 +112,18 @@ class Trainer:
                          if config.eval_every and config.eval_episodes else None)
         v = self.vec
         task = config.task_config()
-        self.head_terms = None       # reward heads: the env's terms summed into each head
-        head_scales = None
-        if config.reward_heads:
-            if min(task.grasp_bonus, task.coordinate_bonus) <= 0:
-                raise InputError("reward_heads: the bonus heads are scaled by rg2 and rc, which "
-                                 "must be positive")
-            self.head_terms = HEAD_TERMS
-            head_scales = (config.algo.reward_scale, 1.0 / max(task.grasp_bonus, task.reach_bonus),
-                           1.0 / task.coordinate_bonus)
+        self.head_terms, head_scales = reward_heads(config, task)
         self.agent = DADDPG(config.algo, v.obs_sizes, v.act_sizes, seed=config.seed,
                             head_scales=head_scales)
         self.buffer = ReplayBuffer(config.algo.buffer_size, 2, v.obs_size, v.act_size,
                                    self.agent.num_heads)
-        self.sampler = self.buffer
-        if config.her_share > 0 or config.algo.n_step > 1 or config.recombine_share > 0:
-            achieved = relabel = recombine = None
-            if config.her_share > 0 or config.recombine_share > 0:
-                goals = ReachRelabeller if task.success_at == "reach" else TargetRelabeller
-                relabeller = goals(task, task.observes_joint_angles)
-            if config.her_share > 0:
-                achieved, relabel = relabeller.achieved, relabeller.relabel
-            if config.recombine_share > 0:         # the full task's (TrainConfig checks it)
-                recombine = relabeller.recombine
-            self.sampler = HindsightSampler(self.buffer, achieved, relabel, config.her_share,
-                                            config.algo.n_step, config.algo.gamma,
-                                            recombine, config.recombine_share)
+        self.sampler = hindsight_sampler(config, self.buffer, task)
         self.mirror = TaskMirror(task, constraints) if config.mirror_episodes else None
         self.batch_shaping = BatchShaping(config, self.agent)
-        # Demonstrations are recorded again on resume (the expert and the physics are
-        # deterministic); the normaliser's statistics then come from the checkpoint.
-        self.demos = None
-        if config.demos is not None:
-            self.demos = record_recording_replays(config, constraints, self.head_terms,
-                                                  log=lambda line: print(line, file=sys.stderr))
-        elif config.demo_episodes:
-            self.demos = record_expert_demonstrations(config, v, self.reward_of,
-                                                      self.agent.num_heads)
+        # Demonstrations are recorded again on resume (the expert, the replays and the physics
+        # are deterministic); the normaliser's statistics then come from the checkpoint.
+        self.demos = demonstration_buffer(config, v, constraints, self.head_terms, self.reward_of,
+                                          self.agent.num_heads)
         if self.demos is not None:
             self.agent.normalizer.update(self.demos.data["obs"][:len(self.demos)])
         self.curriculum = None
@@ -168,20 +142,13 @@ class Trainer:
         self.last_eval: dict | None = None
         self.recent_success = deque(maxlen=100)
         self.recent_return = deque(maxlen=100)
-        columns = ["episode", "env_steps", "wall_time_s", "steps"]
-        columns += [f"return_{a}" for a in v.agents] + ["return_total", "success"]
-        if v.has_subtasks:
-            columns += [f"subtask_{a}" for a in v.agents]
-        if config.uses_start_states:      # the sub-task at which each arm began
-            columns += [f"start_{a}" for a in v.agents]
-        columns += [f"{t}_{a}" for t in v.term_names for a in v.agents]
         #: Seconds spent since this process started training, by part of a round
         #: (collect_s: the episodes, of which act_s choosing actions and store_s storing
         #: transitions, the rest stepping the environments; update_s: gradient updates;
         #: eval_s: evaluations and curriculum probes), and the counts of the same span.
         self.timing = {"collect_s": 0.0, "act_s": 0.0, "store_s": 0.0, "update_s": 0.0,
                        "eval_s": 0.0, "updates": 0, "episodes": 0, "env_steps": 0}
-        self.metrics = CsvLog(paths.metrics, columns)
+        self.metrics = CsvLog(paths.metrics, metrics_columns(v, config.uses_start_states))
         # with policy_average, the averaged actors are evaluated beside the run's own
         self.eval_average = config.algo.policy_average > 0 and config.algo.eval_actor != "average"
         columns = list(EVAL_COLUMNS) + (list(AVERAGE_EVAL_COLUMNS) if self.eval_average else [])
@@ -298,7 +265,8 @@ class Trainer:
                 before = self.episodes
                 rows, losses = self._round(started)
                 self.metrics.append(rows)
-                self._log_round(rows, losses)
+                log_round(self._writer, rows, losses, self.recent_success, self.episodes,
+                          self.curriculum, self.agent.action_l2)
                 bar.update(len(rows))
                 evaluated = self._crossed(before, c.eval_every) or self.episodes >= c.episodes
                 if self.eval_vec is not None and evaluated:
@@ -364,28 +332,10 @@ class Trainer:
         wall = time.perf_counter() - started
         timing["episodes"] += n
         timing["env_steps"] += round_steps
-        rows = []
-        for i in range(n):
-            self.episodes += 1
-            row = {"episode": self.episodes,
-                   "env_steps": self.env_steps - round_steps + int(r.steps[:i + 1].sum()),
-                   "wall_time_s": f"{wall:.3f}", "steps": int(r.steps[i])}
-            for k, name in enumerate(v.agents):
-                row[f"return_{name}"] = f"{r.returns[i, k]:.6f}"
-            row["return_total"] = f"{r.returns[i].sum():.6f}"
-            row["success"] = int(r.success[i])
-            if v.has_subtasks:
-                for k, name in enumerate(v.agents):
-                    row[f"subtask_{name}"] = int(r.subtask[i, k])
-            if starts is not None:
-                for k, name in enumerate(v.agents):
-                    row[f"start_{name}"] = int(starts[i, k])
-            for t in v.term_names:
-                for k, name in enumerate(v.agents):
-                    row[f"{t}_{name}"] = f"{r.terms[t][i, k]:.6f}"
-            rows.append(row)
-            self.recent_success.append(bool(r.success[i]))
-            self.recent_return.append(float(r.returns[i].sum()))
+        rows = episode_rows(v, r, n, self.episodes + 1, self.env_steps - round_steps, wall, starts)
+        self.episodes += n
+        self.recent_success.extend(bool(x) for x in r.success[:n])
+        self.recent_return.extend(float(x) for x in r.returns[:n].sum(axis=1))
         return rows, losses
 
     def reward_of(self, step) -> np.ndarray:
@@ -448,41 +398,17 @@ class Trainer:
             average = evaluate(lambda o: self.agent.act(o, actors="average"), self.eval_vec,
                                c.eval_episodes)
         self.wall_time_s = time.perf_counter() - started
-        row = {"episode": self.episodes, "env_steps": self.env_steps,
-               "wall_time_s": f"{self.wall_time_s:.3f}", "success_rate": f"{result.success_rate:.4f}",
-               "return_mean": f"{result.mean_return:.6f}", "steps_mean": f"{result.steps.mean():.3f}"}
-        if average is not None:
-            row["average_success_rate"] = f"{average.success_rate:.4f}"
-            row["average_return_mean"] = f"{average.mean_return:.6f}"
-            self._writer.add_scalar("eval/average_success_rate", average.success_rate, self.episodes)
-        self.eval_log.append([row])
+        self.eval_log.append([eval_row(self.episodes, self.env_steps, self.wall_time_s, result,
+                                       average)])
         self.eval_rows += 1
         self.last_eval = {"episode": self.episodes, "success_rate": result.success_rate,
                           "return_mean": result.mean_return}
-        self._writer.add_scalar("eval/success_rate", result.success_rate, self.episodes)
-        self._writer.add_scalar("eval/return_mean", result.mean_return, self.episodes)
+        log_evaluation(self._writer, result, self.episodes, average)
         if (result.success_rate, result.mean_return) > self.best:
             self.best = (result.success_rate, result.mean_return)
             save_checkpoint(self.paths.best, {"policy": self.agent.policy_state_dict(),
                                               "config": self.stored_config().to_dict(),
                                               "eval": self.last_eval})
-
-    def _log_round(self, rows: list[dict], losses: list[dict]) -> None:
-        w = self._writer
-        for row in rows:
-            w.add_scalar("train/return_total", float(row["return_total"]), row["episode"])
-            w.add_scalar("train/success", row["success"], row["episode"])
-        if losses:
-            for key in dict.fromkeys(k for x in losses for k in x):
-                w.add_scalar(f"loss/{key}", float(np.mean([x[key] for x in losses if key in x])),
-                             self.episodes)
-        w.add_scalar("train/success_rate_100", float(np.mean(self.recent_success)), self.episodes)
-        if self.curriculum is not None:
-            w.add_scalar("curriculum/frontier", self.curriculum.frontier(), self.episodes)
-            w.add_scalar("train/action_l2", self.agent.action_l2, self.episodes)
-            for name, rate in zip(START_CLASSES, self.curriculum.success_rates()):
-                if rate is not None:
-                    w.add_scalar(f"curriculum/success_from_{name}", rate, self.episodes)
 
     def _postfix(self) -> dict:
         post = {"succ100": f"{np.mean(self.recent_success):.2f}",
@@ -494,52 +420,11 @@ class Trainer:
     # ---------------------------------------------------------- checkpoints
     def save(self) -> None:
         """Write ``checkpoints/latest.pt`` atomically (call between rounds only)."""
-        save_checkpoint(self.paths.latest, {
-            "config": self.stored_config().with_(episodes=1).to_dict(),
-            "learner": self.agent.state_dict(),
-            "replay": self.buffer.state_dict(),
-            "rng": self.rng.bit_generator.state,
-            "torch_rng": torch.get_rng_state(),
-            "counters": {"episodes": self.episodes, "env_steps": self.env_steps,
-                         "updates_owed": self.updates_owed, "wall_time_s": self.wall_time_s,
-                         "eval_rows": self.eval_rows, "best": list(self.best),
-                         "recent_success": list(self.recent_success),
-                         "recent_return": list(self.recent_return),
-                         "last_eval": self.last_eval},
-            "curriculum": self.curriculum.state_dict() if self.curriculum is not None else None,
-        })
+        save_checkpoint(self.paths.latest, trainer_state(self))
 
     def load(self, payload: dict) -> None:
         """Restore the state saved by ``save`` (the config must match but for ``episodes``)."""
-        where = self.paths.latest
-        mine = self.stored_config().with_(episodes=1).to_dict()
-        theirs = payload.get("config", {})
-        try:   # settings added since the checkpoint was written take their defaults
-            theirs = TrainConfig.from_dict(theirs, base=TrainConfig.paper()).to_dict()
-        except (InputError, TypeError):
-            pass
-        changed = sorted(k for k in mine if mine.get(k) != theirs.get(k))
-        if changed:
-            raise CheckpointError(f"{where}: the checkpoint was made with different settings "
-                                  f"({', '.join(changed)}) than {self.paths.config}")
-        try:
-            self.agent.load_state_dict(payload["learner"])
-            self.buffer.load_state_dict(payload["replay"])
-            self.rng.bit_generator.state = payload["rng"]
-            torch.set_rng_state(payload["torch_rng"])
-            k = payload["counters"]
-            self.episodes, self.env_steps = int(k["episodes"]), int(k["env_steps"])
-            self.updates_owed, self.wall_time_s = float(k["updates_owed"]), float(k["wall_time_s"])
-            self.eval_rows, self.best = int(k["eval_rows"]), tuple(k["best"])
-            self.recent_success.extend(k["recent_success"])
-            self.recent_return.extend(k["recent_return"])
-            self.last_eval = k["last_eval"]
-            if self.curriculum is not None:
-                self.curriculum.load_state_dict(payload["curriculum"])
-        except (KeyError, ValueError, RuntimeError, TypeError) as exc:
-            raise CheckpointError(f"{where}: incompatible with this run or this version "
-                                  f"({type(exc).__name__}: {exc})") from None
-
+        restore_trainer(self, payload)
 
 def train(config: TrainConfig, out: str | Path, make_env=None, progress: bool = True) -> TrainResult:
     """Start a run in ``out`` and train it to the end (see ``Trainer``)."""
