@@ -188,6 +188,11 @@ class TrainConfig:
             each paired with another step's state), so the demonstrations keep their action
             statistics but lose what the person did where. A speed-up that survives it does
             not come from the demonstrated motion.
+        demo_following: how ``demos``' hand paths are followed in the simulator:
+            "time", one retimed point per step at the person's pace
+            (``dualarm.sim_demos.replay.follow_path``), or "phase", by arc length from where
+            the grip site is, at the robot's pace (``track_path``): the action then depends on
+            the state alone, as a policy's does.
         algo: the DADDPG hyper-parameters.
     """
 
@@ -218,6 +223,7 @@ class TrainConfig:
     demo_episodes: int = 0
     demos: str | None = None
     shuffle_demos: bool = False
+    demo_following: str = "time"
     algo: DADDPGConfig = RECIPE_ALGO
 
     def __post_init__(self):
@@ -257,6 +263,10 @@ class TrainConfig:
             if task.max_episode_steps < DEFAULT_STEPS:
                 raise InputError(f"demos: a recording is retimed to {DEFAULT_STEPS} steps, longer "
                                  f"than task.max_episode_steps {task.max_episode_steps}")
+        from dualarm.sim_demos.replay import FOLLOWING
+        if self.demo_following not in FOLLOWING:
+            raise InputError(f"demo_following must be one of {FOLLOWING}, got "
+                             f"{self.demo_following!r}")
         if self.shuffle_demos and self.demos is None:
             raise InputError("shuffle_demos is a control for demos: give demos too")
         if self.demo_episodes and task.control != "cartesian":

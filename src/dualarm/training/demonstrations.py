@@ -4,6 +4,8 @@ demonstration buffer). An option beyond the paper: its three conditions use none
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from dualarm.rl.replay import ReplayBuffer
@@ -23,6 +25,19 @@ def stored_reward(reward: np.ndarray, terms: dict, head_terms=None) -> np.ndarra
     if head_terms is None:
         return reward
     return np.stack([sum(terms[t] for t in names) for names in head_terms], axis=-1)
+
+
+def demonstration_buffer(config: TrainConfig, vec: VectorEnv, constraints, head_terms,
+                         reward_of, reward_size: int) -> ReplayBuffer | None:
+    """The run's demonstration buffer: the recordings of ``config.demos``
+    (``record_recording_replays``), else ``config.demo_episodes`` of the scripted expert in
+    ``vec`` (``record_expert_demonstrations``), else None."""
+    if config.demos is not None:
+        return record_recording_replays(config, constraints, head_terms,
+                                        log=lambda line: print(line, file=sys.stderr))
+    if config.demo_episodes:
+        return record_expert_demonstrations(config, vec, reward_of, reward_size)
+    return None
 
 
 def record_expert_demonstrations(config: TrainConfig, vec: VectorEnv, reward_of=None,
@@ -81,7 +96,8 @@ def record_recording_replays(config: TrainConfig, constraints, head_terms=None,
             if d.grip is None:
                 left_out.append(f"{d.source}: no gripper events (left_grip, right_grip columns)")
                 continue
-            r = replay_demonstration(env, d, labels[d.name], scenes[d.name])
+            r = replay_demonstration(env, d, labels[d.name], scenes[d.name],
+                                     following=config.demo_following)
             if not r.success:
                 left_out.append(f"{d.source}: its replay at its scene does not succeed ({r.why})")
                 continue
@@ -89,7 +105,7 @@ def record_recording_replays(config: TrainConfig, constraints, head_terms=None,
             usable.append(d)
         if usable and config.demo_episodes:
             moved = augment(env, usable, labels, scenes, config.demo_episodes,
-                            DEMO_SEED_BASE + config.seed)
+                            DEMO_SEED_BASE + config.seed, following=config.demo_following)
             replays += moved.replays
             if log is not None:
                 log(f"demos: {len(moved.replays)} of {moved.attempts} recordings moved to new "
