@@ -130,6 +130,14 @@ def test_demos_options_are_checked_and_the_command_turns_them_on(tmp_path):
     assert drawn.algo.demo_batch_size == DEMOS_ALGO["demo_batch_size"]
     assert TrainConfig.from_dict(drawn.to_dict()) == drawn
     algo = TrainConfig().algo.with_(demo_batch_size=8)
+    from dualarm.training.config import DEMOS_EPISODES
+    # the recordings are moved to new placements whatever the algo draws (an algo of its own
+    # once silently left only the 10 own-scene replays), and as many as asked where asked
+    own_algo = TrainConfig.from_dict({"demos": str(DEFAULT_DEMO_DIR),
+                                      "algo": {"demo_batch_size": 64, "bc_weight": 3.0}})
+    assert own_algo.demo_episodes == DEMOS_EPISODES and own_algo.algo.bc_weight == 3.0
+    assert TrainConfig().with_(demos=str(DEFAULT_DEMO_DIR), demo_episodes=5).demo_episodes == 5
+    assert TrainConfig().demo_episodes == 0
     from dualarm.training.demonstrations import record_recording_replays
     moved = TrainConfig().with_(condition="none", demos=str(DEFAULT_DEMO_DIR), demo_episodes=3)
     lines = []

@@ -20,7 +20,6 @@ their targets at the same step. Reward of arm i (Eqs. 16-18):
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 
@@ -29,9 +28,11 @@ import numpy as np
 
 from dualarm.constraints.constraint_set import ConstraintSet
 from dualarm.envs.config import TaskConfig
-from dualarm.envs.rules import (FINGER_CLOSED, FINGER_OPEN, GAP_AT_ZERO, GraspRule, OBS_LAYOUT, UP, finger_targets, observation_layout)
+from dualarm.envs.model_ids import SceneIndices, home_posture, solve_grip_ik
+from dualarm.envs.rules import (FINGER_CLOSED, FINGER_OPEN, GAP_AT_ZERO, GraspRule, UP,
+                                finger_targets, observation_layout)
 from dualarm.errors import InputError
-from dualarm.envs.scene import GRIP_DOWN_QUAT, REST_POSTURE, compiled_model
+from dualarm.envs.scene import GRIP_DOWN_QUAT, compiled_model
 from dualarm.kinematics import ARMS, BAXTER_JOINT_LIMITS, BAXTER_JOINT_NAMES
 
 #: Height (m) above its box at which the longest approach start ends (``approach_starts``).
@@ -50,43 +51,6 @@ def check_start_probs(probs) -> np.ndarray | None:
         raise ValueError("start probabilities must be 3 non-negative numbers (reach, grasp, "
                          f"align) that sum to 1, got {list(np.ravel(p))}")
     return None if p[0] == 1.0 else p / p.sum()
-
-
-def solve_grip_ik(model: mujoco.MjModel, data: mujoco.MjData, ix: "_Indices",
-                  grip: np.ndarray, iterations: int = 20, tolerance: float = 1e-4) -> float:
-    """Set both arms' joints in ``data.qpos`` so that the grip sites reach ``grip`` (2, 3) m
-    with the gripper pointing down (``GRIP_DOWN_QUAT``); damped least squares from the
-    current joints, within Baxter's joint limits.
-
-    Returns:
-        the largest remaining position error (m).
-    """
-    jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
-    want, have, inverse, error = np.array(GRIP_DOWN_QUAT), np.zeros(4), np.zeros(4), np.zeros(4)
-    rotation = np.zeros(3)
-    worst = math.inf
-    for _ in range(iterations):
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_comPos(model, data)
-        worst = 0.0
-        for arm in range(2):
-            site = ix.grip_site[arm]
-            offset = grip[arm] - data.site_xpos[site]
-            worst = max(worst, float(np.abs(offset).max()))
-            mujoco.mju_mat2Quat(have, data.site_xmat[site])
-            mujoco.mju_negQuat(inverse, have)
-            mujoco.mju_mulQuat(error, want, inverse)
-            mujoco.mju_quat2Vel(rotation, error, 1.0)
-            mujoco.mj_jacSite(model, data, jacp, jacr, site)
-            jac = np.vstack([jacp[:, ix.arm_dof[arm]], jacr[:, ix.arm_dof[arm]]])   # (6, 7)
-            step = jac.T @ np.linalg.solve(jac @ jac.T + 1e-4 * np.eye(6),
-                                           np.concatenate([offset, rotation]))
-            q = data.qpos[ix.arm_qpos[arm]] + step
-            data.qpos[ix.arm_qpos[arm]] = np.clip(q, BAXTER_JOINT_LIMITS[:, 0], BAXTER_JOINT_LIMITS[:, 1])
-        if worst < tolerance:
-            break
-    mujoco.mj_kinematics(model, data)
-    return worst
 
 
 #: Per-arm layout of the state gathered from MuJoCo each step (``qpos_gather``, 16 entries, and
@@ -113,75 +77,6 @@ class StepResult:
     terminated: bool
     truncated: bool
     info: dict
-
-
-def home_posture(config: TaskConfig) -> np.ndarray:
-    """Arm joint angles (2, 7) rad with the grip sites at ``config.home_grip``, gripper down.
-
-    Found once per scene and home position (whatever the control mode or condition) by
-    letting the cartesian controller settle from ``REST_POSTURE``.
-    """
-    return _settled_posture(config.scene, config.home_grip).copy()
-
-
-@functools.lru_cache(maxsize=8)
-def _settled_posture(scene, home_grip: tuple[float, float, float]) -> np.ndarray:
-    model = compiled_model(scene, False, "cartesian")
-    data = mujoco.MjData(model)
-    task = _Indices(model)
-    for arm in range(2):
-        data.qpos[task.arm_qpos[arm]] = REST_POSTURE[arm]
-    hx, hy, hz = home_grip
-    data.mocap_pos[task.hand_mocap] = [[hx, hy, hz], [hx, -hy, hz]]
-    data.ctrl[task.finger_ctrl] = FINGER_OPEN
-    mujoco.mj_step(model, data, nstep=600)
-    return data.qpos[task.arm_qpos].copy()
-
-
-class _Indices:
-    """Addresses of the task's joints, bodies and actuators in a compiled scene."""
-
-    def __init__(self, model: mujoco.MjModel):
-        def jid(name):
-            i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
-            if i < 0:
-                raise ValueError(f"model has no joint {name!r}: build it with dualarm.envs.scene")
-            return i
-
-        def aid(name):
-            return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
-
-        def mocap(name):
-            return int(model.body_mocapid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)])
-
-        self.arm_qpos = np.array([[model.jnt_qposadr[jid(f"{a}_{j}")] for j in BAXTER_JOINT_NAMES]
-                                  for a in ARMS])
-        self.arm_dof = np.array([[model.jnt_dofadr[jid(f"{a}_{j}")] for j in BAXTER_JOINT_NAMES]
-                                 for a in ARMS])
-        self.arm_ctrl = np.array([[aid(f"{a}_{j}_servo") for j in BAXTER_JOINT_NAMES] for a in ARMS])
-        fingers = [[f"{a}_gripper_r_finger_joint", f"{a}_gripper_l_finger_joint"] for a in ARMS]
-        self.finger_qpos = np.array([[model.jnt_qposadr[jid(n)] for n in pair] for pair in fingers])
-        self.finger_dof = np.array([[model.jnt_dofadr[jid(n)] for n in pair] for pair in fingers])
-        self.finger_ctrl = np.array([[aid(f"{a}_gripper_gripper_{f}_finger_joint") for f in "rl"]
-                                     for a in ARMS])
-        box_q = [model.jnt_qposadr[jid(f"{a}_box_joint")] for a in ARMS]
-        box_v = [model.jnt_dofadr[jid(f"{a}_box_joint")] for a in ARMS]
-        self.box_pos = np.array([[q, q + 1, q + 2] for q in box_q])
-        self.box_quat = np.array([[q + 3, q + 4, q + 5, q + 6] for q in box_q])
-        self.box_linvel = np.array([[v, v + 1, v + 2] for v in box_v])
-        self.box_angvel = np.array([[v + 3, v + 4, v + 5] for v in box_v])
-        # One gather per step instead of one per field: per arm, qpos entries
-        # [7 joints, 2 fingers, 3 box position, 4 box quaternion] and qvel entries
-        # [3 box linear, 3 box angular, 2 fingers].
-        self.qpos_gather = np.concatenate([self.arm_qpos, self.finger_qpos, self.box_pos,
-                                           self.box_quat], axis=1)
-        self.qvel_gather = np.concatenate([self.box_linvel, self.box_angvel, self.finger_dof], axis=1)
-        self.grip_site = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE,
-                                                     f"{a}_gripper_grip_site") for a in ARMS])
-        self.target_mocap = np.array([mocap(f"{a}_target") for a in ARMS])
-        self.hand_mocap = (np.array([mocap(f"{a}_hand_target") for a in ARMS])
-                           if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "left_hand_target") >= 0
-                           else None)
 
 
 def _one_info(info: dict, i: int) -> dict:
@@ -242,7 +137,7 @@ class BaxterBatch:
         self.num_envs = num_envs
         self.model = compiled_model(config.scene, False, config.control)
         self.datas = [mujoco.MjData(self.model) for _ in range(num_envs)]
-        self.ix = _Indices(self.model)
+        self.ix = SceneIndices(self.model)
         self.cartesian = config.control == "cartesian"
         self.action_size = 4 if self.cartesian else 8
         self.layout = observation_layout(config.observes_joint_angles)

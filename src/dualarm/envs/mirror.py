@@ -108,15 +108,11 @@ class TaskMirror:
         return self.constraints.guide_reward(q, subtask[..., 0], subtask[..., 1], self._c0)
 
     def reward(self, rew: np.ndarray, next_obs: np.ndarray) -> np.ndarray:
-        """Mirrored rewards of transitions with rewards ``rew`` (n, 2), or (n, 2, heads)
-        whose head 0 holds the guide term, that arrived at ``next_obs`` (n, 2, obs_size)."""
+        """Mirrored rewards of transitions with rewards ``rew`` (n, 2) that arrived at
+        ``next_obs`` (n, 2, obs_size)."""
         out = rew[:, ::-1].astype(np.float64)
         if self.constraints is not None:
-            change = self.guide(self.obs(next_obs)) - self.guide(next_obs)[:, ::-1]
-            if out.ndim == 3:
-                out[..., 0] += change
-            else:
-                out += change
+            out += self.guide(self.obs(next_obs)) - self.guide(next_obs)[:, ::-1]
         return out.astype(rew.dtype)
 
     def episode(self, obs, act, rew, next_obs):

@@ -104,11 +104,6 @@ class GraspRule:
         return to_box, grasped, grasped & ((off * off).sum(axis=-1) < self.align_sq)
 
 
-#: The reward split into the critics' heads (``DADDPG``'s ``head_scales``): per-step terms,
-#: goal bonuses (rg1, rg2), coordination bonus (rc).
-HEAD_TERMS = (("distance", "guide"), ("goal",), ("coordinate",))
-
-
 class TaskGoals:
     """The task's goal functions, for a learner that rewrites stored steps for other goals
     (as SB3's HER buffer calls ``env.compute_reward``): what was achieved, and the terms of

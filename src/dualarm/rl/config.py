@@ -17,7 +17,7 @@ EVAL_ACTORS = ("online", "target", "average")
 REMOVED_FIELDS = {"noise": "gaussian", "value_rescale": False, "advantage_learning": 0.0,
                   "ou_theta": ANY, "grip_hold_eps": 0.0, "grip_hold_steps": ANY,
                   "free_grip": False, "critic_layer_norm": False, "random_grip": True,
-                  "policy_delay": 1, "pretrain_updates": 0}
+                  "policy_delay": 1, "pretrain_updates": 0, "n_step": 1}
 
 
 def _upgrade(d: dict, where: str) -> dict:
@@ -98,11 +98,14 @@ class DADDPGConfig:
     bc_weight: float = 0.0
     """Weight of the behaviour-cloning term on the demonstration rows of a batch, Q-filtered:
     only where the critic rates the demonstrated action above the actor's (Nair et al. 2018)."""
-    n_step: int = 1
-    """Steps of real rewards in each critic target before it bootstraps (n-step returns,
-    Sutton 1988; Rainbow and FastTD3 use 3): y = sum_k gamma^k r_k + gamma^m Q'(s_m), m <= n,
-    shorter where the episode ends. Uncorrected off-policy, as those use it; hindsight
-    targets relabel every step of the n (Yang et al. 2021). 1: the paper's Eq. 13."""
+    clone_updates: int = 0
+    """Updates of behaviour cloning of the actors alone on the demonstration buffer before the
+    first episode (``DADDPG.clone``, ``batch_size`` rows each):
+    learning starts from the cloned policy. 0: none."""
+    critic_warmup: int = 0
+    """Updates at the start of learning in which only the critics learn, the actors and the
+    observation statistics held (so that a cloned policy is not pulled by a critic that knows
+    nothing yet, nor fed inputs scaled otherwise than those it was fitted to). 0: none."""
     updates_per_step: float = 0.5
     """Gradient updates per joint environment step (the update-to-data ratio)."""
     eval_actor: str = "online"
@@ -135,8 +138,9 @@ class DADDPGConfig:
             "grad_clip": self.grad_clip >= 0, "reward_scale": self.reward_scale > 0,
             "q_clip": self.q_clip >= 0, "target_noise": self.target_noise >= 0,
             "twin_min_weight": 0 <= self.twin_min_weight <= 1 and (self.twin_critics or self.twin_min_weight == 1),
-            "updates_per_step": self.updates_per_step >= 0, "n_step": self.n_step >= 1,
+            "updates_per_step": self.updates_per_step >= 0,
             "demo_batch_size": self.demo_batch_size >= 0, "bc_weight": self.bc_weight >= 0,
+            "clone_updates": self.clone_updates >= 0, "critic_warmup": self.critic_warmup >= 0,
             "warmup_steps": self.warmup_steps >= 0, "eval_actor": self.eval_actor in EVAL_ACTORS,
             "policy_average": 0 <= self.policy_average <= 1,
         }

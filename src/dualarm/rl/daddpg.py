@@ -41,38 +41,26 @@ class DADDPG:
         obs_sizes: observation width of each agent.
         act_sizes: action width of each agent (actions in [-1, 1]).
         seed: seeds the initial weights.
-        head_scales: reward decomposition (van Seijen et al. 2017): the reward arrives as K
-            components per agent, and each critic has K outputs, head k learning the return
-            of component k times ``head_scales[k]``, so that a shaping term of tenths and a
-            bonus of thousands each fill a head at a scale of about one. Eq. 13 holds per
-            head; their sum is Q_i. The actor climbs that sum in the first head's units
-            (sum_k q_k head_scales[0] / head_scales[k]). None: one head, rewards times
-            ``config.reward_scale``.
+
+    Each critic has one output, the return of the rewards times ``config.reward_scale``.
     """
 
     def __init__(self, config: DADDPGConfig, obs_sizes: tuple[int, ...],
-                 act_sizes: tuple[int, ...], seed: int = 0,
-                 head_scales: tuple[float, ...] | None = None):
+                 act_sizes: tuple[int, ...], seed: int = 0):
         self.config = c = config
         self.num_agents = a = len(obs_sizes)
         self.obs_sizes, self.act_sizes = tuple(obs_sizes), tuple(act_sizes)
         self.obs_size, self.act_size = max(obs_sizes), max(act_sizes)
-        self.head_scales = tuple(float(x) for x in (head_scales or (c.reward_scale,)))
-        if not all(x > 0 for x in self.head_scales):
-            raise ValueError(f"head_scales must be positive, got {self.head_scales}")
-        self.num_heads = h = len(self.head_scales)
-        self._scales = torch.tensor(self.head_scales, dtype=torch.float32)
-        # weight of each head in the actor's objective: its return in the first head's units
-        self._head_weights = self._scales[0] / self._scales
+        self._scale = torch.tensor([c.reward_scale], dtype=torch.float32)
         g = torch.Generator().manual_seed(seed)
         state_size = a * self.obs_size
         # Critic stacks: [Q_1 .. Q_A] or, with twin critics, [Q_1 .. Q_A, Q2_1 .. Q2_A].
         self.critics_per_agent = 2 if c.twin_critics else 1
         k = a * self.critics_per_agent
         self.actor = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True, g, final_scale=0.1)
-        self.critic = StackedMLP(k, state_size + self.act_size, h, c.hidden, False, g, final_scale=0.1)
+        self.critic = StackedMLP(k, state_size + self.act_size, 1, c.hidden, False, g, final_scale=0.1)
         self.actor_target = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True)
-        self.critic_target = StackedMLP(k, state_size + self.act_size, h, c.hidden)
+        self.critic_target = StackedMLP(k, state_size + self.act_size, 1, c.hidden)
         self.actor_target.load_state_dict(self.actor.state_dict())
         self.critic_target.load_state_dict(self.critic.state_dict())
         # policy_average: a slower average of the actors, for acting only (None: off)
@@ -164,22 +152,14 @@ class DADDPG:
         return torch.cat([s, actions.repeat(copies, 1, 1)], -1)
 
     def _per_agent(self, q: torch.Tensor) -> torch.Tensor:
-        """Critic outputs (K, B, H) -> (critics_per_agent, A, B, H)."""
+        """Critic outputs (K, B, 1) -> (critics_per_agent, A, B, 1)."""
         return q.view(self.critics_per_agent, self.num_agents, *q.shape[1:])
 
-    def q_total(self, q: torch.Tensor) -> torch.Tensor:
-        """Heads (..., H) -> Q (..., 1) in the first head's units (the actor's objective)."""
-        if self.num_heads == 1:
-            return q
-        return (q * self._head_weights).sum(-1, keepdim=True)
+    def td_target(self, r: torch.Tensor, not_done: torch.Tensor, o2: torch.Tensor) -> torch.Tensor:
+        """Eq. 13's y_i = r_i + gamma Q'_i(s', mu'_i(s'_i)), (A, B, 1), without gradients.
 
-    def td_target(self, r: torch.Tensor, not_done: torch.Tensor, o2: torch.Tensor,
-                  discount: torch.Tensor | None = None) -> torch.Tensor:
-        """Eq. 13's y_i = r_i + gamma Q'_i(s', mu'_i(s'_i)), (A, B, H), without gradients.
-
-        r (A, B, H) scaled rewards, not_done (1, B, 1), o2 (A, B, O) normalised next
-        observations; discount (1, B, 1) in place of gamma, per sample (gamma^m for rewards
-        summed over m steps, n-step returns). With twin critics Q' is the smaller of the two
+        r (A, B, 1) scaled rewards, not_done (1, B, 1), o2 (A, B, O) normalised next
+        observations. With twin critics Q' is the smaller of the two
         target critics (or with ``twin_min_weight`` beta, beta min + (1 - beta) mean), with
         ``target_noise`` the target actions are smoothed (TD3), with ``q_clip`` y is clipped.
         """
@@ -188,12 +168,11 @@ class DADDPG:
         if c.target_noise > 0:
             eps = (torch.randn(a2.shape, generator=self.torch_rng) * c.target_noise).clamp(-0.5, 0.5)
             a2 = (a2 + eps).clamp(-1.0, 1.0)
-        gamma = c.gamma if discount is None else discount
-        y = r + gamma * not_done * self._target_q(o2, a2)
+        y = r + c.gamma * not_done * self._target_q(o2, a2)
         return y.clamp(-c.q_clip, c.q_clip) if c.q_clip > 0 else y
 
     def _target_q(self, o: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
-        """Q'_i(s, a_i) (A, B, H) of the target critics: the smaller twin, or with
+        """Q'_i(s, a_i) (A, B, 1) of the target critics: the smaller twin, or with
         ``twin_min_weight`` beta < 1 beta min + (1 - beta) mean (one critic: itself)."""
         q = self._per_agent(self.critic_target(self._critic_input(o, actions * self.action_mask)))
         beta = self.config.twin_min_weight
@@ -212,15 +191,35 @@ class DADDPG:
         # only the first twin of each agent's critics scores the actor (TD3): the first A
         # stacked critics, run alone
         a = self.num_agents
-        q_pi = self.q_total(self.critic(self._critic_input(o, a_pi, copies=1), stacks=a))
+        q_pi = self.critic(self._critic_input(o, a_pi, copies=1), stacks=a)
         self.critic.requires_grad_(True)
         loss = (-q_pi.mean(dim=(1, 2)) + self.action_penalty(a_pi, penalty_weight)).sum()
         if demo_rows and c.bc_weight > 0:
-            q_demo = self.q_total(q_taken[0, :, -demo_rows:])
+            q_demo = q_taken[0, :, -demo_rows:]
             better = (q_demo > q_pi[:, -demo_rows:]).detach().float()              # (A, D, 1)
             miss = ((a_pi[:, -demo_rows:] - a_taken[:, -demo_rows:]) ** 2).sum(-1, keepdim=True)
             loss = loss + c.bc_weight * (better * miss).mean(dim=(1, 2)).sum()
         return loss
+
+    def clone(self, batch: dict[str, torch.Tensor]) -> float:
+        """One step of behaviour cloning of the actors alone on demonstration rows (obs (B, A, O),
+        act (B, A, U)): the mean squared action error, summed over agents; the target and
+        averaged actors are then set to the actors (a warm start before reinforcement
+        learning, as DAPG and "jump-start" RL begin from a cloned policy). Returns the loss."""
+        o = self.normalizer.normalize(batch["obs"]).transpose(0, 1)          # (A, B, O)
+        a_taken = batch["act"].transpose(0, 1)
+        miss = (((self.actor(o) - a_taken) * self.action_mask) ** 2).sum(-1).mean(-1).sum()
+        if not torch.isfinite(miss):
+            raise NonFiniteLoss(f"non-finite cloning loss: {miss.item()}")
+        self.actor_opt.zero_grad(set_to_none=True)
+        miss.backward()
+        self._clip(self.actor)
+        self.actor_opt.step()
+        with torch.no_grad():
+            for copy in (self.actor_target, self.actor_average):
+                if copy is not None:
+                    copy.load_state_dict(self.actor.state_dict())
+        return miss.item()
 
     @torch.no_grad()
     def soft_update(self) -> None:
@@ -237,12 +236,10 @@ class DADDPG:
         target networks (Eq. 15).
 
         Args:
-            batch: obs and next_obs (B, A, O), act (B, A, U), rew (B, A) or, with reward
-                heads, (B, A, H), and done (B,); optionally penalty_weight (B, A), the action
-                penalty's weight per sample and agent in place of ``action_l2``; optionally
-                shaping (B, A), a term added to the first head's scaled reward (learner units,
-                for example potential-based shaping); optionally discount (B,), the factor
-                on the bootstrapped value in place of gamma (gamma^m where rew sums m steps).
+            batch: obs and next_obs (B, A, O), act (B, A, U), rew (B, A) and done (B,);
+                optionally penalty_weight (B, A), the action penalty's weight per sample and
+                agent in place of ``action_l2``; optionally shaping (B, A), a term added to the
+                scaled reward (learner units, for example potential-based shaping).
             demo_rows: the last ``demo_rows`` rows of the batch are demonstrations (see
                 :meth:`actor_loss`).
 
@@ -257,16 +254,15 @@ class DADDPG:
         o2 = norm(batch["next_obs"]).transpose(0, 1)
         a_taken = batch["act"].transpose(0, 1)                     # (A, B, U)
         rew = batch["rew"] if batch["rew"].dim() == 3 else batch["rew"].unsqueeze(-1)
-        r = rew.transpose(0, 1) * self._scales                     # (A, B, H)
+        r = rew.transpose(0, 1) * self._scale                      # (A, B, 1)
         if "shaping" in batch:                                     # r is a new tensor: add in place
             r[..., 0] += batch["shaping"].transpose(0, 1)
         not_done = (1.0 - batch["done"]).view(1, -1, 1)            # (1, B, 1)
 
-        discount = batch["discount"].view(1, -1, 1) if "discount" in batch else None
         with torch.no_grad():
-            y = self.td_target(r, not_done, o2, discount)
+            y = self.td_target(r, not_done, o2)
         q = self._per_agent(self.critic(self._critic_input(o, a_taken)))
-        critic_loss = ((y - q) ** 2).mean(dim=(2, 3)).sum()       # per head and sample, summed over critics
+        critic_loss = ((y - q) ** 2).mean(dim=(2, 3)).sum()       # per sample, summed over critics
         # The actor climbs the critic as it is before this step's critic update.
         weight = batch.get("penalty_weight")
         if weight is not None:
@@ -283,12 +279,13 @@ class DADDPG:
         (critic_loss + actor_loss).backward()
         self._clip(self.critic)
         self.critic_opt.step()
-        self._clip(self.actor)
-        self.actor_opt.step()
+        if self.updates >= self.config.critic_warmup:      # actors held while critics warm up
+            self._clip(self.actor)
+            self.actor_opt.step()
         self.soft_update()
         self.updates += 1
         return {"critic_loss": critic_loss.item(), "actor_loss": actor_loss.item(),
-                "q_mean": self.q_total(q[0]).mean().item()}
+                "q_mean": q[0].mean().item()}
 
     def _clip(self, net: torch.nn.Module) -> None:
         """Scale each agent's gradients so that their global norm is at most grad_clip."""
@@ -322,14 +319,15 @@ class DADDPG:
 
     def _shapes(self) -> dict:
         return {"obs_sizes": list(self.obs_sizes), "act_sizes": list(self.act_sizes),
-                "hidden": list(self.config.hidden), "head_scales": list(self.head_scales)}
+                "hidden": list(self.config.hidden)}
 
     def _restore(self, state: dict, parts: tuple[str, ...], what: str) -> None:
         """Load ``parts`` from ``state`` after checking the network shapes match."""
+        if len(state.get("head_scales", ())) > 1:
+            raise ValueError(f"the saved {what} has {len(state['head_scales'])} reward heads "
+                             "(reward_heads, an option removed since; docs/learning-runs.md)")
         for key, mine in self._shapes().items():
-            theirs = state.get(key, [self.config.reward_scale] if key == "head_scales" else None)
-            if key == "head_scales" and len(mine) == 1 and len(theirs) == 1:
-                continue          # one head: its scale is the config's reward_scale, checked there
+            theirs = state.get(key)
             if theirs is None or list(theirs) != mine:
                 raise ValueError(f"{key} {tuple(theirs or ())} of the saved {what} does not match "
                                  f"this one's {tuple(mine)}")

@@ -31,7 +31,7 @@ TASK_OVERRIDES = ("control", "goal", "success_at", "max_episode_steps", "joint_a
 #: it measured.
 REMOVED_FIELDS = {"reach_action_l2": None, "calm_radius": None, "approach_spread": 0.0,
                   "held_spread": 0.0, "grasp_spread": 0.0, "grasp_shaping": 0.0,
-                  "early_close_shaping": 0.0, "her_goal_jitter": 0.0}
+                  "early_close_shaping": 0.0, "her_goal_jitter": 0.0, "reward_heads": False}
 
 #: The recipe's learner: DADDPGConfig's own defaults are plain DDPG (the paper's), with these
 #: changes. Each value's reason is in docs/learning-runs.md.
@@ -165,24 +165,19 @@ class TrainConfig:
             that each arm's agent learns from the other arm's experience as well (Kaleidoscope
             Experience Replay, Lin et al. 2020). Episode counts and logged returns are the
             real episodes'. Needs the joint angles in the observation in a guided condition.
-        reward_heads: split each agent's reward into three components, each learned by its
-            own critic head at its own scale (``DADDPG``'s ``head_scales``): the per-step
-            terms (distance + guide) times ``algo.reward_scale``, the goal bonuses divided
-            by rg2 and the coordination bonus divided by rc. The reward and the objective
-            stay the paper's; only how the critic represents them changes.
         demo_episodes: episodes recorded into a demonstration buffer before training (used
             by ``algo.demo_batch_size`` and ``algo.bc_weight``): without ``demos``, of the
             scripted expert; with ``demos``, the recordings moved to the task's random
             placements (``dualarm.sim_demos.augment``, MimicGen), beside the recordings at their
-            own scenes. 0 for none, as in the paper's three conditions. Baxter task, cartesian
-            control only.
+            own scenes (0 there means ``DEMOS_EPISODES``). 0 for none, as in the paper's three
+            conditions. Baxter task, cartesian control only.
         demos: a demonstration folder (recordings with gripper events, labels.csv and
             scene.csv) whose recordings, replayed at their own scenes in the run's task
             (``dualarm.sim_demos.replay``), fill the demonstration buffer that
-            ``algo.demo_batch_size`` and ``algo.bc_weight`` draw from; where the algo draws no
-            demonstration rows, ``DEMOS_ALGO``'s values and ``DEMOS_EPISODES`` moved
-            recordings (unless ``demo_episodes`` is given). A replay that does not succeed is
-            left out and named. None: no recordings, as in the paper.
+            ``algo.demo_batch_size`` and ``algo.bc_weight`` draw from (where the algo draws no
+            demonstration rows, ``DEMOS_ALGO``'s values), with ``DEMOS_EPISODES`` moved
+            recordings unless ``demo_episodes`` says how many. A replay that does not succeed
+            is left out and named. None: no recordings, as in the paper.
         shuffle_demos: a control for ``demos``: each demonstration episode's actions are
             permuted in time before they are stored (the same steps and the same actions,
             each paired with another step's state), so the demonstrations keep their action
@@ -214,7 +209,6 @@ class TrainConfig:
     near_random_eps: float | None = 0.0
     near_box_radius: float = 0.05
     approach_starts: bool = True
-    reward_heads: bool = False
     her_share: float = 0.8
     recombine_share: float = 1.0
     approach_shaping: float = 1.0
@@ -236,6 +230,7 @@ class TrainConfig:
             raise InputError(f"task overrides {unknown} are not supported; allowed: {TASK_OVERRIDES}")
         if self.demos is not None and self.algo.demo_batch_size == 0:   # demos drawn as DEMOS_ALGO
             object.__setattr__(self, "algo", self.algo.with_(**DEMOS_ALGO))
+        if self.demos is not None:        # whatever the algo says: the recordings are moved
             object.__setattr__(self, "demo_episodes", self.demo_episodes or DEMOS_EPISODES)
         # an override that gives the task's own default is no override: one config, one value
         object.__setattr__(self, "task", {k: v for k, v in self.task.items()
@@ -252,6 +247,9 @@ class TrainConfig:
             task = self.task_config()
         except InputError as exc:
             raise InputError(f"task: {exc}") from None
+        if self.algo.clone_updates and self.demo_episodes == 0 and self.demos is None:
+            raise InputError("algo.clone_updates clones demonstrations: set demos (a "
+                             "demonstration folder) or demo_episodes")
         if self.algo.demo_batch_size > 0 and self.demo_episodes == 0 and self.demos is None:
             raise InputError("algo.demo_batch_size > 0 draws from demonstrations: set demos (a "
                              "demonstration folder) or demo_episodes")
@@ -299,10 +297,10 @@ class TrainConfig:
                 raise InputError(f"{name} must be >= 0, got {getattr(self, name)}")
         if not 0 <= self.her_share <= 1:
             raise InputError(f"her_share must be in [0, 1], got {self.her_share}")
-        if not 0 <= self.recombine_share <= 1 or (self.recombine_share > 0 and (
-                self.algo.n_step > 1 or self.task_config().success_at == "reach")):
-            raise InputError(f"recombine_share must be in [0, 1] and works on 1-step rows of the "
-                             f"full task (algo.n_step 1), got {self.recombine_share}")
+        if not 0 <= self.recombine_share <= 1 or (self.recombine_share > 0 and
+                                                  self.task_config().success_at == "reach"):
+            raise InputError(f"recombine_share must be in [0, 1] and works on the full task, "
+                             f"got {self.recombine_share}")
         if self.checkpoint_minutes <= 0:
             raise InputError(f"checkpoint_minutes must be > 0, got {self.checkpoint_minutes}")
         if self.mirror_episodes and self.condition != "none" and not task.observes_joint_angles:
@@ -314,7 +312,7 @@ class TrainConfig:
         """The options set in this config that exist for the Baxter task only (a custom
         PettingZoo environment has no scripted expert, start states, targets or reward terms)."""
         used = {"start_probs": self.uses_start_states, "her_share": self.her_share > 0,
-                "reward_heads": self.reward_heads, "demo_episodes": self.demo_episodes > 0,
+                "demo_episodes": self.demo_episodes > 0,
                 "demos": self.demos is not None,
                 "far_action_l2": self.far_action_l2 is not None,
                 "near_random_eps": self.near_random_eps is not None,

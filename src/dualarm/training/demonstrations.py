@@ -18,62 +18,47 @@ from dualarm.training.vector import VectorEnv
 DEMO_SEED_BASE = 1_000_003
 
 
-def stored_reward(reward: np.ndarray, terms: dict, head_terms=None) -> np.ndarray:
-    """What the replay stores of steps' rewards (n, A): the rewards themselves, or with
-    ``head_terms`` (the reward heads, e.g. ``HEAD_TERMS``) the sum of each head's named terms
-    (each (n, A)), stacked (n, A, heads)."""
-    if head_terms is None:
-        return reward
-    return np.stack([sum(terms[t] for t in names) for names in head_terms], axis=-1)
-
-
-def demonstration_buffer(config: TrainConfig, vec: VectorEnv, constraints, head_terms,
-                         reward_of, reward_size: int) -> ReplayBuffer | None:
+def demonstration_buffer(config: TrainConfig, vec: VectorEnv, constraints) -> ReplayBuffer | None:
     """The run's demonstration buffer: the recordings of ``config.demos``
     (``record_recording_replays``), else ``config.demo_episodes`` of the scripted expert in
     ``vec`` (``record_expert_demonstrations``), else None."""
     if config.demos is not None:
-        return record_recording_replays(config, constraints, head_terms,
+        return record_recording_replays(config, constraints,
                                         log=lambda line: print(line, file=sys.stderr))
     if config.demo_episodes:
-        return record_expert_demonstrations(config, vec, reward_of, reward_size)
+        return record_expert_demonstrations(config, vec)
     return None
 
 
-def record_expert_demonstrations(config: TrainConfig, vec: VectorEnv, reward_of=None,
-                                 reward_size: int = 1) -> ReplayBuffer:
+def record_expert_demonstrations(config: TrainConfig, vec: VectorEnv) -> ReplayBuffer:
     """Run ``config.demo_episodes`` episodes of ``ScriptedExpert`` in ``vec`` (the run's
     Baxter task, cartesian control: ``TrainConfig`` checks it) and return their transitions
-    (obs and next_obs (N, 2, O), act (N, 2, U), ...). ``reward_of`` maps a step to the
-    rewards stored ((n, 2) or (n, 2, reward_size); default: the step's reward)."""
+    (obs and next_obs (N, 2, O), act (N, 2, U), rew (N, 2), done (N,))."""
     from dualarm.envs.expert import ScriptedExpert
 
     task = config.task_config()
     expert = ScriptedExpert(task)
     buffer = ReplayBuffer(max(1, config.demo_episodes * task.max_episode_steps), 2,
-                          vec.obs_size, vec.act_size, reward_size)
+                          vec.obs_size, vec.act_size)
 
     def act(obs: np.ndarray) -> np.ndarray:
         return np.stack([expert(o) for o in obs])
 
     def store(obs, actions, step, live):
-        reward = step.reward if reward_of is None else reward_of(step)
-        buffer.add(obs[live], actions[live], reward[live], step.obs[live],
+        buffer.add(obs[live], actions[live], step.reward[live], step.obs[live],
                    step.terminated[live])
 
     evaluate(act, vec, config.demo_episodes, DEMO_SEED_BASE + config.seed, on_step=store)
     return buffer
 
 
-def record_recording_replays(config: TrainConfig, constraints, head_terms=None,
-                             log=None) -> ReplayBuffer:
+def record_recording_replays(config: TrainConfig, constraints, log=None) -> ReplayBuffer:
     """Replay the recordings of ``config.demos`` at their own scenes in the run's task
     (condition, constraints and observation as training's; ``dualarm.sim_demos.replay``), and
     with ``config.demo_episodes`` moved to that many of the task's random placements
     (``dualarm.sim_demos.augment``, placements seeded from ``DEMO_SEED_BASE`` + the run's
     seed), and return the transitions of those that succeed (their actions permuted within each
-    episode with ``config.shuffle_demos``, the control), rewards whole (N, 2) or, with
-    ``head_terms`` (the trainer's reward heads), split (N, 2, heads) as training stores them.
+    episode with ``config.shuffle_demos``, the control).
 
     Args:
         log: called with one line per recording left out (its replay did not succeed).
@@ -117,14 +102,13 @@ def record_recording_replays(config: TrainConfig, constraints, head_terms=None,
             log(f"demos: left out {line}")
     rng = np.random.default_rng([config.seed, 3])
     kept = [{"obs": r.obs, "act": r.act[rng.permutation(len(r.act))] if config.shuffle_demos else r.act,
-             "rew": stored_reward(r.rew, r.terms, head_terms),
+             "rew": r.rew,
              "next_obs": r.next_obs, "done": r.done} for r in replays]
     if not kept:
         raise InputError(f"none of the {len(demos)} recordings replays to success at its scene "
                          "(`dualarm demos replay` shows where each stops)", source=str(config.demos))
     rows = sum(len(e["done"]) for e in kept)
-    reward_size = 1 if head_terms is None else len(head_terms)
-    buffer = ReplayBuffer(rows, 2, env.obs_size, env.action_size, reward_size)
+    buffer = ReplayBuffer(rows, 2, env.obs_size, env.action_size)
     for e in kept:
         buffer.add(e["obs"], e["act"], e["rew"], e["next_obs"], e["done"])
     return buffer

@@ -72,7 +72,7 @@ def _q_values(agent, obs: np.ndarray, actions: np.ndarray) -> np.ndarray:
     with torch.inference_mode():
         o = agent.normalizer.normalize(torch.as_tensor(obs, dtype=torch.float32)).transpose(0, 1)
         a = torch.as_tensor(actions, dtype=torch.float32).transpose(0, 1)
-        q = agent.q_total(agent._per_agent(agent.critic(agent._critic_input(o, a)))[0])  # (A, T, 1)
+        q = agent._per_agent(agent.critic(agent._critic_input(o, a)))[0]  # (A, T, 1)
     return q[..., 0].t().numpy().astype(float)
 
 
@@ -81,7 +81,7 @@ def _target_value(agent, obs: np.ndarray) -> np.ndarray:
     with torch.inference_mode():
         o = agent.normalizer.normalize(torch.as_tensor(obs, dtype=torch.float32)).transpose(0, 1)
         a = agent.actor_target(o) * agent.action_mask
-        q = agent.q_total(agent._per_agent(agent.critic_target(agent._critic_input(o, a))).min(dim=0).values)
+        q = agent._per_agent(agent.critic_target(agent._critic_input(o, a))).min(dim=0).values
     return q[..., 0].t().numpy().astype(float)
 
 
@@ -97,7 +97,7 @@ def critic_vs_returns(agent, vec: VectorEnv, episodes: int = 16,
             (T, A, O) -> (T, A) in the critic's units; the returns then add
             gamma * phi(s') * (1 - done) - phi(s) per step, as the learner's targets do.
     """
-    gamma, scale = agent.config.gamma, agent.head_scales[0]      # Q in the first head's units
+    gamma, scale = agent.config.gamma, agent.config.reward_scale
     per_env: dict[int, list] = {}
     finished: list[list] = []
 
@@ -138,6 +138,4 @@ def replay_composition(buffer, thresholds: dict[str, float]) -> dict[str, float]
     if n == 0:
         return {name: 0.0 for name in thresholds}
     rew = buffer.data["rew"][:n]
-    if rew.ndim == 3:                     # reward heads: the raw reward is not stored whole
-        return {}
     return {name: float((rew > t).any(axis=1).mean()) for name, t in thresholds.items()}

@@ -29,7 +29,7 @@ from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
 from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import TrainConfig
 from dualarm.training.curriculum import START_CLASSES, ReverseCurriculum
-from dualarm.training.demonstrations import demonstration_buffer, stored_reward
+from dualarm.training.demonstrations import demonstration_buffer
 from dualarm.training.evaluation import evaluate
 from dualarm.training.exploration import Exploration
 from dualarm.training.rounds import run_round
@@ -37,7 +37,7 @@ from dualarm.training.shaping import BatchShaping
 from dualarm.training.checkpointing import restore_trainer, trainer_state
 from dualarm.training.records import (episode_rows, eval_row, log_evaluation, log_round,
                                       metrics_columns)
-from dualarm.training.storage import RoundStorage, hindsight_sampler, reward_heads
+from dualarm.training.storage import RoundStorage, hindsight_sampler
 from dualarm.training.run_dir import (AVERAGE_EVAL_COLUMNS, EVAL_COLUMNS, CsvLog,
                                       RunPaths, load_checkpoint, save_checkpoint)
 from dualarm.training.vector import PROBE_SEED_BASE, BaxterVector, ParallelEnvVector, VectorEnv, seeds_for
@@ -112,18 +112,14 @@ class Trainer:
                          if config.eval_every and config.eval_episodes else None)
         v = self.vec
         task = config.task_config()
-        self.head_terms, head_scales = reward_heads(config, task)
-        self.agent = DADDPG(config.algo, v.obs_sizes, v.act_sizes, seed=config.seed,
-                            head_scales=head_scales)
-        self.buffer = ReplayBuffer(config.algo.buffer_size, 2, v.obs_size, v.act_size,
-                                   self.agent.num_heads)
+        self.agent = DADDPG(config.algo, v.obs_sizes, v.act_sizes, seed=config.seed)
+        self.buffer = ReplayBuffer(config.algo.buffer_size, 2, v.obs_size, v.act_size)
         self.sampler = hindsight_sampler(config, self.buffer, task)
         self.mirror = TaskMirror(task, constraints) if config.mirror_episodes else None
         self.batch_shaping = BatchShaping(config, self.agent)
         # Demonstrations are recorded again on resume (the expert, the replays and the physics
         # are deterministic); the normaliser's statistics then come from the checkpoint.
-        self.demos = demonstration_buffer(config, v, constraints, self.head_terms, self.reward_of,
-                                          self.agent.num_heads)
+        self.demos = demonstration_buffer(config, v, constraints)
         if self.demos is not None:
             self.agent.normalizer.update(self.demos.data["obs"][:len(self.demos)])
         self.curriculum = None
@@ -177,6 +173,7 @@ class Trainer:
                 raise InputError(f"{paths.root} already holds a run: resume it with "
                                  f"`dualarm train --resume {paths.root}` or choose another --out")
             trainer = cls(config, paths, make_env, progress)
+            trainer._clone_demonstrations()
             source = config.constraints_file() if make_env is None else None
             if source is not None:
                 atomic_copy(source, paths.constraints)
@@ -307,7 +304,7 @@ class Trainer:
             timing["act_s"] += time.perf_counter() - t
             return actions
 
-        storage = RoundStorage(self.buffer, self.mirror, c.her_share > 0, n, self.reward_of)
+        storage = RoundStorage(self.buffer, self.mirror, c.her_share > 0, n, lambda step: step.reward)
 
         def store(obs, actions, step, live):
             t = time.perf_counter()
@@ -322,7 +319,8 @@ class Trainer:
             self.curriculum.record(starts, r.success)
         seen = storage.finish(r.first_obs)
         round_steps = int(r.steps.sum())
-        agent.normalizer.update(seen)            # the statistics of what the critics are shown
+        if agent.updates >= c.algo.critic_warmup:    # held actors keep the inputs they were fitted to
+            agent.normalizer.update(seen)        # the statistics of what the critics are shown
         timing["store_s"] += time.perf_counter() - t
         timing["collect_s"] += t - collect_start
         t = time.perf_counter()
@@ -338,10 +336,6 @@ class Trainer:
         self.recent_return.extend(float(x) for x in r.returns[:n].sum(axis=1))
         return rows, losses
 
-    def reward_of(self, step) -> np.ndarray:
-        """What the replay stores of a step's reward: (n, A), or (n, A, heads) split by term."""
-        return stored_reward(step.reward, step.terms, self.head_terms)
-
     def _update(self, round_steps: int) -> list[dict]:
         """The round's share of gradient updates (none during warm-up)."""
         a = self.config.algo
@@ -356,8 +350,6 @@ class Trainer:
             batch = self.sampler.sample(self.rng, a.batch_size)
             if demo_rows:
                 demos = self.demos.sample(self.rng, demo_rows)
-                if "discount" in batch:          # demonstrations are one-step transitions
-                    demos["discount"] = torch.full((demo_rows,), a.gamma)
                 batch = {k: torch.cat([batch[k], demos[k]]) for k in batch}
             losses.append(self._apply(batch, demo_rows))
         return losses
@@ -372,6 +364,15 @@ class Trainer:
                 f"training stopped in the round after episode {self.episodes}: {exc}. "
                 f"The last good checkpoint is kept in {self.paths.latest}; lower the "
                 "learning rates or the reward scale, or set grad_clip, and resume") from None
+
+    def _clone_demonstrations(self) -> None:
+        """A new run's warm start: ``algo.clone_updates`` updates of the actors cloning the
+        demonstration buffer (``DADDPG.clone``), before the first episode."""
+        a = self.config.algo
+        if not a.clone_updates or self.demos is None:
+            return
+        for _ in range(a.clone_updates):
+            self.agent.clone(self.demos.sample(self.rng, a.batch_size))
 
     def _probe_curriculum(self) -> None:
         """Deterministic episodes from each later start class, recorded by the curriculum

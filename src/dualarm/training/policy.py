@@ -110,8 +110,7 @@ def _load(run_dir: str | Path, which: str, whole: bool) -> tuple[TrainConfig, DA
     try:
         # a learner state holds the policy's parts (actor, normaliser, sizes) too
         state = payload["policy"] if "policy" in payload else payload["learner"]
-        agent = DADDPG(config.algo, state["obs_sizes"], state["act_sizes"], seed=config.seed,
-                       head_scales=state.get("head_scales"))
+        agent = DADDPG(config.algo, state["obs_sizes"], state["act_sizes"], seed=config.seed)
         if whole:
             agent.load_state_dict(state)
         else:

@@ -3,7 +3,7 @@ recombined arm halves. The learner owns what it does with its data; the environm
 functions (``dualarm.envs.rules.TaskGoals``) say what was achieved and what a goal pays.
 
 Batches are dicts of numpy arrays: obs, next_obs (n, 2, O) laid out as ``observation_layout``
-says, act (n, 2, A), rew whole (n, 2) or split as ``HEAD_TERMS`` (n, 2, 3), done (n,).
+says, act (n, 2, A), rew (n, 2), done (n,).
 ``dualarm.rl.her.HindsightSampler`` draws the rows and calls these.
 """
 
@@ -41,13 +41,8 @@ class TargetRelabeller:
         batch["obs"][rows, :, where] = targets
         batch["next_obs"][rows, :, where] = targets
         distance = new_distance - old_distance                         # (k, 2)
-        rew = batch["rew"]
-        if rew.ndim == 3:                 # heads (distance + guide, goal, coordinate)
-            rew[rows, :, 0] += distance
-            rew[rows, :, 2] = c.coordinate_bonus * new_success[:, None]
-        else:
-            rew[rows] += distance + c.coordinate_bonus * (new_success.astype(float)
-                                                          - old_success)[:, None]
+        batch["rew"][rows] += distance + c.coordinate_bonus * (new_success.astype(float)
+                                                               - old_success)[:, None]
         batch["done"][rows] = new_success
 
     def recombine(self, batch: dict, rows: np.ndarray, partners: np.ndarray) -> None:
@@ -66,12 +61,8 @@ class TargetRelabeller:
             batch[key][rows, 1] = batch[key][partners, 1]
         nxt = batch["next_obs"][rows]
         _, joined = self.goals.target_terms(nxt, nxt[..., where])
-        rew = batch["rew"]
-        if rew.ndim == 3:                 # heads (distance + guide, goal, coordinate)
-            rew[rows, :, 2] = c.coordinate_bonus * joined[:, None]
-        else:
-            was = np.stack([own, theirs], axis=-1).astype(float)            # (k, 2)
-            rew[rows] += c.coordinate_bonus * (joined[:, None] - was)
+        was = np.stack([own, theirs], axis=-1).astype(float)                # (k, 2)
+        batch["rew"][rows] += c.coordinate_bonus * (joined[:, None] - was)
         batch["done"][rows] = joined | failed
 
 
@@ -99,8 +90,6 @@ class ReachRelabeller:
     def relabel(self, batch: dict, rows: np.ndarray, goals: np.ndarray) -> None:
         """Rewrite ``batch`` rows ``rows`` (obs, next_obs, rew, done) for boxes at ``goals``
         (len(rows), 2, 3)."""
-        if batch["rew"].ndim != 2:
-            raise ValueError("reach relabelling rewrites whole rewards, not reward heads")
         L = self.goals.layout
         obs, nxt = batch["obs"][rows], batch["next_obs"][rows]
         old, _ = self.goals.reach_reward(obs, nxt, obs[..., L["object_pos"]], nxt[..., L["object_pos"]])

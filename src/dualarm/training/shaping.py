@@ -72,10 +72,8 @@ class BatchShaping:
         """The potential-based shaping term per sample and arm, (B, A), in the learner's
         reward units: gamma * phi(s') * (1 - done) - phi(s), phi from ``shaping_potential``
         on the raw observations (B, A, O) (a success ends the episode with phi = 0, so the
-        shaped return differs from the paper's by -phi(s0) only). With the batch's
-        ``discount`` (B,) of n-step returns, gamma^m in place of gamma: the m steps' terms
-        telescope to gamma^m phi(s_m) - phi(s_t)."""
-        gamma = batch["discount"].unsqueeze(-1) if "discount" in batch else self.config.algo.gamma
+        shaped return differs from the paper's by -phi(s0) only)."""
+        gamma = self.config.algo.gamma
         phi, phi2 = self.potential(batch["obs"]), self.potential(batch["next_obs"])  # (B, A)
         return gamma * (1.0 - batch["done"]).unsqueeze(-1) * phi2 - phi
 

@@ -6,42 +6,26 @@ from __future__ import annotations
 
 import numpy as np
 
-from dualarm.envs.rules import HEAD_TERMS
-from dualarm.errors import InputError
 from dualarm.rl.her import HindsightSampler
 from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.relabel import ReachRelabeller, TargetRelabeller
 
 
-def reward_heads(config, task) -> tuple[tuple | None, tuple | None]:
-    """(head_terms, head_scales) with ``config.reward_heads`` (the env's terms summed into each
-    critic head, and each head's scale: the per-step terms by the reward scale, the goal
-    bonuses by rg2, the coordination bonus by rc), else (None, None): one whole reward."""
-    if not config.reward_heads:
-        return None, None
-    if min(task.grasp_bonus, task.coordinate_bonus) <= 0:
-        raise InputError("reward_heads: the bonus heads are scaled by rg2 and rc, which "
-                         "must be positive")
-    return HEAD_TERMS, (config.algo.reward_scale, 1.0 / max(task.grasp_bonus, task.reach_bonus),
-                        1.0 / task.coordinate_bonus)
-
-
 def hindsight_sampler(config, buffer: ReplayBuffer, task):
     """What batches are drawn through: ``buffer`` itself, or a ``HindsightSampler`` over it
-    with the config's hindsight targets (``her_share``), n-step returns and recombination of
-    the two arms' episodes (``recombine_share``), the goals being the task's (reach or full)."""
-    if not (config.her_share > 0 or config.algo.n_step > 1 or config.recombine_share > 0):
+    with the config's hindsight targets (``her_share``) and recombination of the two arms'
+    episodes (``recombine_share``), the goals being the task's (reach or full)."""
+    if not (config.her_share > 0 or config.recombine_share > 0):
         return buffer
     achieved = relabel = recombine = None
-    if config.her_share > 0 or config.recombine_share > 0:
-        goals = ReachRelabeller if task.success_at == "reach" else TargetRelabeller
-        relabeller = goals(task, task.observes_joint_angles)
+    goals = ReachRelabeller if task.success_at == "reach" else TargetRelabeller
+    relabeller = goals(task, task.observes_joint_angles)
     if config.her_share > 0:
         achieved, relabel = relabeller.achieved, relabeller.relabel
     if config.recombine_share > 0:         # the full task's (TrainConfig checks it)
         recombine = relabeller.recombine
-    return HindsightSampler(buffer, achieved, relabel, config.her_share, config.algo.n_step,
-                            config.algo.gamma, recombine, config.recombine_share)
+    return HindsightSampler(buffer, achieved, relabel, config.her_share, recombine,
+                            config.recombine_share)
 
 
 class RoundStorage:
@@ -54,7 +38,7 @@ class RoundStorage:
         whole: store each episode in one piece at the end of the round (hindsight needs the
             episode), else each step as it comes.
         n: episodes in the round (copies 0..n-1).
-        reward_of: maps an environment step to the rewards stored, (k, A) or (k, A, heads).
+        reward_of: maps an environment step to the rewards stored, (k, A).
     """
 
     def __init__(self, buffer: ReplayBuffer, mirror, whole: bool, n: int, reward_of):
