@@ -17,7 +17,8 @@ EVAL_ACTORS = ("online", "target", "average")
 REMOVED_FIELDS = {"noise": "gaussian", "value_rescale": False, "advantage_learning": 0.0,
                   "ou_theta": ANY, "grip_hold_eps": 0.0, "grip_hold_steps": ANY,
                   "free_grip": False, "critic_layer_norm": False, "random_grip": True,
-                  "policy_delay": 1, "pretrain_updates": 0, "n_step": 1}
+                  "policy_delay": 1, "pretrain_updates": 0, "n_step": 1,
+                  "clone_updates": 0, "critic_warmup": 0}
 
 
 def _upgrade(d: dict, where: str) -> dict:
@@ -98,14 +99,6 @@ class DADDPGConfig:
     bc_weight: float = 0.0
     """Weight of the behaviour-cloning term on the demonstration rows of a batch, Q-filtered:
     only where the critic rates the demonstrated action above the actor's (Nair et al. 2018)."""
-    clone_updates: int = 0
-    """Updates of behaviour cloning of the actors alone on the demonstration buffer before the
-    first episode (``DADDPG.clone``, ``batch_size`` rows each):
-    learning starts from the cloned policy. 0: none."""
-    critic_warmup: int = 0
-    """Updates at the start of learning in which only the critics learn, the actors and the
-    observation statistics held (so that a cloned policy is not pulled by a critic that knows
-    nothing yet, nor fed inputs scaled otherwise than those it was fitted to). 0: none."""
     updates_per_step: float = 0.5
     """Gradient updates per joint environment step (the update-to-data ratio)."""
     eval_actor: str = "online"
@@ -140,7 +133,6 @@ class DADDPGConfig:
             "twin_min_weight": 0 <= self.twin_min_weight <= 1 and (self.twin_critics or self.twin_min_weight == 1),
             "updates_per_step": self.updates_per_step >= 0,
             "demo_batch_size": self.demo_batch_size >= 0, "bc_weight": self.bc_weight >= 0,
-            "clone_updates": self.clone_updates >= 0, "critic_warmup": self.critic_warmup >= 0,
             "warmup_steps": self.warmup_steps >= 0, "eval_actor": self.eval_actor in EVAL_ACTORS,
             "policy_average": 0 <= self.policy_average <= 1,
         }

@@ -201,26 +201,6 @@ class DADDPG:
             loss = loss + c.bc_weight * (better * miss).mean(dim=(1, 2)).sum()
         return loss
 
-    def clone(self, batch: dict[str, torch.Tensor]) -> float:
-        """One step of behaviour cloning of the actors alone on demonstration rows (obs (B, A, O),
-        act (B, A, U)): the mean squared action error, summed over agents; the target and
-        averaged actors are then set to the actors (a warm start before reinforcement
-        learning, as DAPG and "jump-start" RL begin from a cloned policy). Returns the loss."""
-        o = self.normalizer.normalize(batch["obs"]).transpose(0, 1)          # (A, B, O)
-        a_taken = batch["act"].transpose(0, 1)
-        miss = (((self.actor(o) - a_taken) * self.action_mask) ** 2).sum(-1).mean(-1).sum()
-        if not torch.isfinite(miss):
-            raise NonFiniteLoss(f"non-finite cloning loss: {miss.item()}")
-        self.actor_opt.zero_grad(set_to_none=True)
-        miss.backward()
-        self._clip(self.actor)
-        self.actor_opt.step()
-        with torch.no_grad():
-            for copy in (self.actor_target, self.actor_average):
-                if copy is not None:
-                    copy.load_state_dict(self.actor.state_dict())
-        return miss.item()
-
     @torch.no_grad()
     def soft_update(self) -> None:
         """Eq. 15: theta' <- tau theta + (1 - tau) theta', for every target network."""
@@ -279,9 +259,8 @@ class DADDPG:
         (critic_loss + actor_loss).backward()
         self._clip(self.critic)
         self.critic_opt.step()
-        if self.updates >= self.config.critic_warmup:      # actors held while critics warm up
-            self._clip(self.actor)
-            self.actor_opt.step()
+        self._clip(self.actor)
+        self.actor_opt.step()
         self.soft_update()
         self.updates += 1
         return {"critic_loss": critic_loss.item(), "actor_loss": actor_loss.item(),

@@ -247,9 +247,6 @@ class TrainConfig:
             task = self.task_config()
         except InputError as exc:
             raise InputError(f"task: {exc}") from None
-        if self.algo.clone_updates and self.demo_episodes == 0 and self.demos is None:
-            raise InputError("algo.clone_updates clones demonstrations: set demos (a "
-                             "demonstration folder) or demo_episodes")
         if self.algo.demo_batch_size > 0 and self.demo_episodes == 0 and self.demos is None:
             raise InputError("algo.demo_batch_size > 0 draws from demonstrations: set demos (a "
                              "demonstration folder) or demo_episodes")

@@ -173,7 +173,6 @@ class Trainer:
                 raise InputError(f"{paths.root} already holds a run: resume it with "
                                  f"`dualarm train --resume {paths.root}` or choose another --out")
             trainer = cls(config, paths, make_env, progress)
-            trainer._clone_demonstrations()
             source = config.constraints_file() if make_env is None else None
             if source is not None:
                 atomic_copy(source, paths.constraints)
@@ -319,8 +318,7 @@ class Trainer:
             self.curriculum.record(starts, r.success)
         seen = storage.finish(r.first_obs)
         round_steps = int(r.steps.sum())
-        if agent.updates >= c.algo.critic_warmup:    # held actors keep the inputs they were fitted to
-            agent.normalizer.update(seen)        # the statistics of what the critics are shown
+        agent.normalizer.update(seen)            # the statistics of what the critics are shown
         timing["store_s"] += time.perf_counter() - t
         timing["collect_s"] += t - collect_start
         t = time.perf_counter()
@@ -364,15 +362,6 @@ class Trainer:
                 f"training stopped in the round after episode {self.episodes}: {exc}. "
                 f"The last good checkpoint is kept in {self.paths.latest}; lower the "
                 "learning rates or the reward scale, or set grad_clip, and resume") from None
-
-    def _clone_demonstrations(self) -> None:
-        """A new run's warm start: ``algo.clone_updates`` updates of the actors cloning the
-        demonstration buffer (``DADDPG.clone``), before the first episode."""
-        a = self.config.algo
-        if not a.clone_updates or self.demos is None:
-            return
-        for _ in range(a.clone_updates):
-            self.agent.clone(self.demos.sample(self.rng, a.batch_size))
 
     def _probe_curriculum(self) -> None:
         """Deterministic episodes from each later start class, recorded by the curriculum
