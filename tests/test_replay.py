@@ -106,16 +106,17 @@ def test_recordings_fill_the_demonstration_buffer_and_failed_replays_are_named(t
     from dualarm.training import TrainConfig
     from dualarm.training.demonstrations import record_recording_replays
 
-    config = TrainConfig().with_(condition="none", demos=str(DEFAULT_DEMO_DIR),
+    config = TrainConfig().with_(condition="none", demos=str(DEFAULT_DEMO_DIR), demo_episodes=2,
                                  algo=TrainConfig().algo.with_(demo_batch_size=8))
     buffer = record_recording_replays(config, None)
-    assert 300 < len(buffer) < 500                               # 10 replays of about 36 steps
-    assert buffer.data["done"][:len(buffer)].sum() == 10         # each ends in its success
+    assert 350 < len(buffer) < 550                      # 10 + 2 moved replays of about 36 steps
+    assert buffer.data["done"][:len(buffer)].sum() == 12         # each ends in its success
     assert buffer.data["obs"].shape[1:] == (2, 36)               # joint angles observed (recipe)
     lines = []
     partly = config.with_(demos=str(_folder_with_scene(tmp_path / "a", -0.08, {"demo_03"})))
     assert len(record_recording_replays(partly, None, log=lines.append)) < len(buffer)
-    assert len(lines) == 1 and "demo_03" in lines[0] and "does not succeed" in lines[0]
+    left_out = [line for line in lines if "left out" in line]
+    assert len(left_out) == 1 and "demo_03" in left_out[0] and "does not succeed" in left_out[0]
     missed = config.with_(demos=str(_folder_with_scene(tmp_path / "b", -0.08)))
     with pytest.raises(InputError, match="none of the 10 recordings replays to success"):
         record_recording_replays(missed, None)
