@@ -266,3 +266,15 @@ def test_a_missing_optional_package_is_one_line_naming_the_extra(tmp_path, monke
     assert main(["export", str(src), "--format", "baxter", "-o", str(tmp_path / "b.csv")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "pip install 'dualarm[export]'" in err and "toppra" in err
+
+
+def test_env_commands_default_to_trains_condition_with_the_shipped_constraints(capsys):
+    """`env` takes train's default condition (multi, the shipped constraints): one default
+    across commands (it was none for env, multi for train)."""
+    from dualarm.cli.main import build_parser, main
+
+    for argv in (["video", "-o", "x.mp4"], ["expert"], ["strip", "-o", "x.png"]):
+        args = build_parser().parse_args(["env", *argv])
+        assert args.condition == build_parser().parse_args(["train"]).condition == "multi"
+    assert main(["env", "expert", "--episodes", "1"]) == 0
+    assert "condition multi" in capsys.readouterr().out

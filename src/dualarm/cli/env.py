@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dualarm.cli.arguments import InputPath, OutputFile, VideoFile, frame_rate, pixels, positive_int
+from dualarm.cli.arguments import (InputPath, OutputFile, VideoFile, frame_rate, pixels, positive_int,
+                                   seed_number)
 from dualarm.task import CONDITIONS
 
 
@@ -16,7 +17,12 @@ def _environment(args: argparse.Namespace):
     """The task core from the command's options (frame size too, for rendering commands)."""
     from dualarm.envs import make_core
 
-    env = make_core(condition=args.condition, constraints=args.constraints, control=args.control)
+    constraints = args.constraints
+    if constraints is None and args.condition != "none":      # the shipped set, as train uses
+        from dualarm.constraints.constraint_set import default_constraints_path
+
+        constraints = default_constraints_path(args.condition)
+    env = make_core(condition=args.condition, constraints=constraints, control=args.control)
     if hasattr(args, "height"):
         env.render_size = (args.height, args.width)
     return env
@@ -109,13 +115,14 @@ def add_env_command(sub) -> None:
     esub = env.add_subparsers(dest="env_command", required=True, metavar="COMMAND")
 
     def task_options(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--condition", choices=CONDITIONS, default="none",
-                       help="joint-angle guidance (needs --constraints unless none; default: none)")
+        p.add_argument("--condition", choices=CONDITIONS, default="multi",
+                       help="joint-angle guidance (default: multi, with the shipped constraints, "
+                            "as train)")
         p.add_argument("--constraints", type=InputPath, metavar="FILE.yaml",
-                       help="constraints file for the single/multi conditions")
+                       help="constraints file for single/multi (default: the shipped one)")
         p.add_argument("--control", choices=("cartesian", "joint"), default="cartesian",
                        help="action space (default: cartesian)")
-        p.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
+        p.add_argument("--seed", type=seed_number, default=0, help="seed of the first episode (default: 0)")
 
     def rendering_options(p: argparse.ArgumentParser) -> None:
         p.add_argument("--policy", choices=("expert", "random"), default="expert",

@@ -14,7 +14,7 @@ def cmd_play(args: argparse.Namespace) -> int:
     from dualarm.envs.rendering import write_video
 
     env, episode, info = policy_episode(args.run, args.checkpoint, args.seed, args.camera,
-                                           (args.height, args.width))
+                                        (args.height, args.width), progress=True)
     frames = with_end_pause(episode.frames, args.fps)
     path = write_video(args.output, frames, fps=args.fps)
     print(f"{info['checkpoint']}: seed {args.seed}, {'success' if episode.success else 'failure'} in "

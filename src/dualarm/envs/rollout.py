@@ -53,11 +53,12 @@ class Episode:
 
 
 def run_episode(env: BaxterReachGraspAlign, policy: Policy, seed: int,
-                camera: str | None = None) -> Episode:
+                camera: str | None = None, on_step=None) -> Episode:
     """Run one episode from ``reset(seed)`` until it terminates or is truncated.
 
     Args:
         camera: render a frame after the reset and after every step from this camera.
+        on_step: called with no arguments after every step (a progress bar's update).
     """
     obs, _ = env.reset(seed=seed)
     frames = [env.render(camera)] if camera else []
@@ -73,6 +74,8 @@ def run_episode(env: BaxterReachGraspAlign, policy: Policy, seed: int,
         joints.append(env.joint_angles())
         if camera:
             frames.append(env.render(camera))
+        if on_step is not None:
+            on_step()
         if result.terminated or result.truncated:
             break
     return Episode(seed, bool(result.info["is_success"]), env.steps, returns,

@@ -128,9 +128,10 @@ def single_env_policy(agent: DADDPG):
 
 
 def policy_episode(run: Path, checkpoint: str, seed: int, camera: str | None = None,
-                   size: tuple[int, int] | None = None):
-    """One episode of a run's deterministic policy from ``reset(seed)``.
-    Returns (env, episode, checkpoint info)."""
+                   size: tuple[int, int] | None = None, progress: bool = False):
+    """One episode of a run's deterministic policy from ``reset(seed)`` (``progress``: a bar
+    of its steps on stderr, for the seconds rendering takes). Returns (env, episode,
+    checkpoint info)."""
     from dualarm.envs.baxter import BaxterReachGraspAlign
     from dualarm.envs.rollout import run_episode
     from dualarm.training.policy import load_policy, single_env_policy
@@ -139,6 +140,18 @@ def policy_episode(run: Path, checkpoint: str, seed: int, camera: str | None = N
     env = BaxterReachGraspAlign(config.task_config(), config.load_constraints())
     if size:
         env.render_size = size
-    episode = run_episode(env, single_env_policy(agent), seed, camera=camera)
+    bar = None
+    if progress:
+        import sys
+
+        from tqdm import tqdm
+        bar = tqdm(total=config.task_config().max_episode_steps, unit="step", desc="render",
+                   file=sys.stderr)
+    try:
+        episode = run_episode(env, single_env_policy(agent), seed, camera=camera,
+                              on_step=bar.update if bar is not None else None)
+    finally:
+        if bar is not None:
+            bar.close()
     env.close()
     return env, episode, info
