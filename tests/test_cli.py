@@ -272,9 +272,10 @@ def test_env_commands_default_to_trains_condition_with_the_shipped_constraints(c
     """`env` takes train's default condition (multi, the shipped constraints): one default
     across commands (it was none for env, multi for train)."""
     from dualarm.cli.main import build_parser, main
+    from dualarm.training import TrainConfig
 
     for argv in (["video", "-o", "x.mp4"], ["expert"], ["strip", "-o", "x.png"]):
         args = build_parser().parse_args(["env", *argv])
-        assert args.condition == build_parser().parse_args(["train"]).condition == "multi"
+        assert args.condition == TrainConfig().condition == "multi"
     assert main(["env", "expert", "--episodes", "1"]) == 0
     assert "condition multi" in capsys.readouterr().out
