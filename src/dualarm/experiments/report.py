@@ -14,6 +14,8 @@ import io
 import math
 from pathlib import Path
 
+import numpy as np
+
 from dualarm.atomic import atomic_open
 from dualarm.experiments.findings import findings
 from dualarm.curves import RATIO_PAIRS
@@ -138,6 +140,26 @@ def run_rows(report: Report) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
+def human_rows(report: Report) -> tuple[list[str], list[list[str]]]:
+    """Per condition: the share of joint-steps inside the human ranges and the posture
+    distance to the demonstrations at the same phase, means over the measured runs."""
+    header = ["condition", "runs measured", "inside the human ranges of the sub-task",
+              "posture distance to the demonstrations, rad"]
+    rows = []
+    for condition, measures in report.human.items():
+        rows.append([condition, str(len(measures)),
+                     f"{np.mean([m.inside for m in measures]):.3f}",
+                     f"{np.mean([m.posture for m in measures]):.3f}"])
+    return header, rows
+
+
+def _human_caption(report: Report) -> str:
+    return ("Each run's best policy, 10 deterministic episodes from the reset, every step of "
+            "both arms, against the shipped demonstrations and their multi-segment ranges; "
+            f"the demonstrations among themselves (each against the others): "
+            f"{report.human_reference:.3f} rad.")
+
+
 def csv_table(report: Report) -> str:
     """``table.csv``: one row per condition, plain numbers (empty = not available)."""
     cols = ["condition", "seeds", "episodes_compared", "target", "window"]
@@ -252,7 +274,11 @@ def markdown(report: Report) -> str:
     if found:
         parts += ["## Findings", ""] + [f"- {line}" for line in found] + [""]
     parts += [_md_table(*summary_rows(report)), "", "## Ratios between conditions", "",
-             _md_table(*ratio_rows(report)), "", "## Runs", "", _md_table(*run_rows(report))]
+             _md_table(*ratio_rows(report))]
+    if report.human:
+        parts += ["", "## Human-likeness", "", _human_caption(report), "",
+                  _md_table(*human_rows(report))]
+    parts += ["", "## Runs", "", _md_table(*run_rows(report))]
     if report.notes:
         parts += ["", "## Notes", ""] + [f"- {n}" for n in report.notes]
     parts += ["", "## Definitions", ""] + [f"- {d}" for d in definitions(report)]
@@ -276,6 +302,9 @@ def html_page(report: Report) -> str:
         body += ["<h2>Findings</h2><ul>"] + [f"<li>{html.escape(x)}</li>" for x in found] + ["</ul>"]
     body += ["<h2>Summary</h2>", _html_table(*summary_rows(report)),
             "<h2>Ratios between conditions</h2>", _html_table(*ratio_rows(report))]
+    if report.human:
+        body += ["<h2>Human-likeness</h2>", f"<p>{html.escape(_human_caption(report))}</p>",
+                 _html_table(*human_rows(report))]
     if report.notes:
         body += ["<h2>Notes</h2><ul>"] + [f"<li>{html.escape(n)}</li>" for n in report.notes]
         body += ["</ul>"]
@@ -291,8 +320,14 @@ def html_page(report: Report) -> str:
 
 def save_report(report: Report, out: str | Path) -> Path:
     """Write the figures, table.csv, table.md and index.html of ``report`` into ``out``
-    (created if missing), each atomically, index.html last. Returns the path of index.html."""
+    (created if missing), each atomically, index.html last; first the human-likeness of each
+    run that has a policy (``human_likeness.measure_runs``). Returns the path of index.html."""
     from dualarm.experiments import report_plots
+    from dualarm.experiments.human_likeness import measure_runs
+
+    if not report.human:
+        report.human, report.human_reference, notes = measure_runs(report.runs)
+        report.notes.extend(notes)
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -149,6 +149,8 @@ class Report:
         notes: remarks a reader must see (partial runs, truncation, flagged means).
         actors: whose evaluations were read: "policy" (eval.csv ``success_rate``) or
             "average" (``average_success_rate``, the averaged actors evaluated beside).
+        human: condition -> each measured run's ``HumanLikeness`` (``human_likeness``).
+        human_reference: the demonstrations' posture distance among themselves, rad.
     """
 
     source: Path
@@ -160,6 +162,8 @@ class Report:
     median_ratios: dict[str, dict[tuple[str, str], tuple[float, float, float] | None]]
     notes: list[str] = field(default_factory=list)
     actors: str = "policy"
+    human: dict = field(default_factory=dict)
+    human_reference: float | None = None
 
 
 def summarize_condition(condition: str, runs: list[Run], window: int = 100,
