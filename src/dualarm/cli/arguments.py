@@ -37,20 +37,22 @@ def seed_number(text: str) -> int:
     return value
 
 
+def _at_most(value, bound, unit: str, text: str):
+    """``value`` if it is at most ``bound`` (the work or the file grows with it), else the
+    argument error naming the bound in ``unit``."""
+    if value > bound:
+        raise argparse.ArgumentTypeError(f"must be at most {bound} {unit}, got {text!r}")
+    return value
+
+
 def pixels(text: str) -> int:
     """An image side in pixels: an integer in 1..``MAX_PIXELS``."""
-    value = positive_int(text)
-    if value > MAX_PIXELS:
-        raise argparse.ArgumentTypeError(f"must be at most {MAX_PIXELS} pixels, got {text!r}")
-    return value
+    return _at_most(positive_int(text), MAX_PIXELS, "pixels", text)
 
 
 def frame_rate(text: str) -> float:
     """Frames per second of a video: a finite number in (0, ``MAX_FPS``]."""
-    value = positive(text)
-    if value > MAX_FPS:
-        raise argparse.ArgumentTypeError(f"must be at most {MAX_FPS} frames per second, got {text!r}")
-    return value
+    return _at_most(positive(text), MAX_FPS, "frames per second", text)
 
 
 #: Bounds of the rendering options: the work and the file grow with them.
@@ -85,10 +87,7 @@ def limit_scale(text: str) -> float:
 
 def sample_rate(text: str) -> float:
     """Samples per second of an exported trajectory: a number in (0, ``MAX_RATE_HZ``]."""
-    value = positive(text)
-    if value > MAX_RATE_HZ:
-        raise argparse.ArgumentTypeError(f"must be at most {MAX_RATE_HZ} Hz, got {text!r}")
-    return value
+    return _at_most(positive(text), MAX_RATE_HZ, "Hz", text)
 
 
 #: Fastest export rate: 10 times Baxter's 100 Hz joint_recorder, and more than any command

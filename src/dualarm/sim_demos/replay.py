@@ -27,6 +27,7 @@ import numpy as np
 from dualarm.demos.labels import DemoLabels
 from dualarm.demos.loading import DemoJoints, MappingOptions, load_demo_dir
 from dualarm.demos.scene import Scene, Workspace, demo_scenes
+from dualarm.envs.rules import closed_gap, finger_gap, observation_layout
 from dualarm.task import SUBTASKS
 
 #: Steps of the retimed task window: the expert needs about 25, a learner's episode is 50;
@@ -167,21 +168,36 @@ def follow_path(env, name: str, path: np.ndarray, closed: np.ndarray, scene: Sce
     ``path`` (K + 1, 2, 3) m, one point per step, with the grippers ``closed`` (K + 1, 2) as
     given, then holds the last point to the episode's end. The episode is ``name``'s."""
     steps = len(path) - 1
+    error = np.zeros(2)
+
+    def act(k: int, obs: np.ndarray) -> np.ndarray:
+        point = path[min(k + 1, steps)]
+        move = gain * (point - env.grip_pos[0]) / env.config.max_cartesian_step
+        command = np.where(closed[min(k + 1, steps)], 1.0, -1.0)
+        return np.clip(np.concatenate([move, command[:, None]], axis=1), -1.0, 1.0)
+
+    def after(k: int) -> None:
+        if k < steps:
+            point = path[min(k + 1, steps)]
+            np.maximum(error, np.linalg.norm(env.grip_pos[0] - point, axis=-1), out=error)
+
+    return _episode(env, name, scene, steps, act, error, after)
+
+
+def _episode(env, name: str, scene: Scene, retimed_steps: int, act, error: np.ndarray,
+             after=None) -> Replay:
+    """One episode of ``env`` at ``scene`` with the actions ``act(k, obs)`` (2, 4) of step k,
+    recorded as the learner stores it; ``after(k)`` runs after each step, and ``error`` (2,)
+    is the follower's largest tracking error by the end."""
     limit = env.config.max_episode_steps
     obs, info = env.reset(placement=scene)
     rows = {k: [] for k in ("obs", "act", "rew", "next_obs", "done")}
     terms: dict[str, list] = {}
-    error = np.zeros(2)
-    success = False
     for k in range(limit):
-        point = path[min(k + 1, steps)]
-        grip_now = env.grip_pos[0]
-        move = gain * (point - grip_now) / env.config.max_cartesian_step
-        command = np.where(closed[min(k + 1, steps)], 1.0, -1.0)
-        action = np.clip(np.concatenate([move, command[:, None]], axis=1), -1.0, 1.0)
+        action = act(k, obs)
         result = env.step(action)
-        if k < steps:
-            error = np.maximum(error, np.linalg.norm(env.grip_pos[0] - point, axis=-1))
+        if after is not None:
+            after(k)
         done = bool(result.terminated)
         for key, value in (("obs", obs), ("act", action), ("rew", result.reward),
                            ("next_obs", result.obs), ("done", float(done))):
@@ -189,10 +205,9 @@ def follow_path(env, name: str, path: np.ndarray, closed: np.ndarray, scene: Sce
         for term, value in result.info["reward_terms"].items():
             terms.setdefault(term, []).append(np.asarray(value, dtype=float))
         obs = result.obs
-        success = bool(result.info["is_success"])
         if done or result.truncated:
             break
-    return Replay(name, success, len(rows["done"]), steps,
+    return Replay(name, bool(result.info["is_success"]), len(rows["done"]), retimed_steps,
                   np.asarray(result.info["subtask"]).copy(), error,
                   *(np.stack(rows[k]) for k in ("obs", "act", "rew", "next_obs", "done")),
                   {term: np.stack(v) for term, v in terms.items()})
@@ -248,18 +263,13 @@ def track_path(env, name: str, path: np.ndarray, closed: np.ndarray, scene: Scen
     fingers to close. The person's pace is not kept: the arm moves at the largest step."""
     step = env.config.max_cartesian_step
     lookahead = step if lookahead is None else lookahead
-    from dualarm.envs.rules import closed_gap, finger_gap, observation_layout
     layout = observation_layout(env.config.observes_joint_angles)
     shut_gap = closed_gap(env.config)
     arms = [PathProgress(path[:, a], closed[:, a]) for a in range(2)]
-    limit = env.config.max_episode_steps
-    obs, info = env.reset(placement=scene)
-    rows = {k: [] for k in ("obs", "act", "rew", "next_obs", "done")}
-    terms: dict[str, list] = {}
     error = np.zeros(2)
-    success = False
     command = -np.ones(2)
-    for k in range(limit):
+
+    def act(k: int, obs: np.ndarray) -> np.ndarray:
         grip_now = env.grip_pos[0]
         fingers = finger_gap(np.asarray(obs)[:, layout["fingers"]]) <= shut_gap
         move = np.zeros((2, 3))
@@ -272,19 +282,6 @@ def track_path(env, name: str, path: np.ndarray, closed: np.ndarray, scene: Scen
             ahead = arm.point(min(s + lookahead, arm.arc[-1] if command[a] > 0 and fingers[a]
                                   else (arm.grasp_at if arm.closes else arm.arc[-1])))
             move[a] = gain * (ahead - grip_now[a]) / step
-        action = np.clip(np.concatenate([move, command[:, None]], axis=1), -1.0, 1.0)
-        result = env.step(action)
-        done = bool(result.terminated)
-        for key, value in (("obs", obs), ("act", action), ("rew", result.reward),
-                           ("next_obs", result.obs), ("done", float(done))):
-            rows[key].append(np.asarray(value, dtype=float))
-        for term, value in result.info["reward_terms"].items():
-            terms.setdefault(term, []).append(np.asarray(value, dtype=float))
-        obs = result.obs
-        success = bool(result.info["is_success"])
-        if done or result.truncated:
-            break
-    return Replay(name, success, len(rows["done"]), len(path) - 1,
-                  np.asarray(result.info["subtask"]).copy(), error,
-                  *(np.stack(rows[k]) for k in ("obs", "act", "rew", "next_obs", "done")),
-                  {term: np.stack(v) for term, v in terms.items()})
+        return np.clip(np.concatenate([move, command[:, None]], axis=1), -1.0, 1.0)
+
+    return _episode(env, name, scene, len(path) - 1, act, error)
