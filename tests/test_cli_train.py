@@ -382,7 +382,7 @@ def test_critic_returns_add_the_shaping_of_a_potential(run_dir):
     """With a constant potential c, a step's shaping is gamma c - c, so an episode cut off
     after T steps returns -c (1 - gamma^(T - t)) more from step t than without it."""
     from dualarm.training.diagnostics import critic_vs_returns
-    from dualarm.training.loop import make_vector_env
+    from dualarm.training.vector import make_vector_env
     from dualarm.training.policy import load_learner
 
     config, learner, _ = load_learner(run_dir)

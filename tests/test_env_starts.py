@@ -11,7 +11,7 @@ from dualarm.envs.baxter import BaxterBatch, check_start_probs
 from dualarm.envs.config import TaskConfig
 from dualarm.envs.expert import ScriptedExpert
 from dualarm.training.config import TrainConfig
-from dualarm.training.loop import make_vector_env
+from dualarm.training.vector import make_vector_env
 
 
 @pytest.mark.parametrize("control", ["cartesian", "joint"])

@@ -296,7 +296,7 @@ def test_demonstrations_are_the_expert_in_the_runs_own_environment():
     the rewards that task pays, and different placements from the training episodes."""
     from dualarm.envs.expert import ScriptedExpert
     from dualarm.training.demonstrations import record_expert_demonstrations
-    from dualarm.training.loop import make_vector_env
+    from dualarm.training.vector import make_vector_env
 
     config = demo_config()
     vec = make_vector_env(config, 4)

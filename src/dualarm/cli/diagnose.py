@@ -12,7 +12,7 @@ from dualarm.task import SUBTASKS
 def cmd_diagnose(args: argparse.Namespace) -> int:
     """Outcome of each arm's episodes (``dualarm.training.outcomes``) from each start asked for."""
     from dualarm.errors import InputError
-    from dualarm.training.loop import make_vector_env
+    from dualarm.training.vector import make_vector_env
     from dualarm.training.outcomes import link_outcomes
     from dualarm.training.policy import load_actors, policy_heading
 
@@ -45,7 +45,7 @@ def _critic_table(args: argparse.Namespace) -> int:
     """Each arm's critic Q(s_t, a_t) next to the discounted return observed from step t, in
     the learner's units, from each start asked for (the latest checkpoint: the critics)."""
     from dualarm.training.diagnostics import critic_vs_returns
-    from dualarm.training.loop import make_vector_env
+    from dualarm.training.vector import make_vector_env
     from dualarm.training.shaping import shaping_potential
     from dualarm.training.policy import load_learner
 

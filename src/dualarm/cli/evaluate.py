@@ -12,7 +12,7 @@ from dualarm.task import SUBTASKS
 def cmd_eval(args: argparse.Namespace) -> int:
     """Success rate and mean return of a run's policy on the fixed evaluation episodes."""
     from dualarm.training.evaluation import evaluate
-    from dualarm.training.loop import make_vector_env
+    from dualarm.training.vector import make_vector_env
     from dualarm.training.policy import load_actors, policy_heading
 
     config, agent, info = load_actors(args.run, args.checkpoint, args.actor)

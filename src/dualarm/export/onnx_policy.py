@@ -91,7 +91,7 @@ def check_onnx(agent: DADDPG, path: str | Path, config, observations: int = 1000
     Returns:
         {"observations": how many, "max_abs": largest |difference| of any action}.
     """
-    from dualarm.training.loop import make_vector_env
+    from dualarm.training.vector import make_vector_env
     from dualarm.training.rounds import run_round
     from dualarm.training.vector import EVAL_SEED_BASE, seeds_for
 

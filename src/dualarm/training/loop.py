@@ -16,12 +16,10 @@ import time
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import torch
 
-from dualarm.atomic import atomic_copy, leftover_temporaries
 from dualarm.envs.mirror import TaskMirror
 from dualarm.errors import DualarmError, InputError
 from dualarm.locks import DirectoryLock
@@ -35,12 +33,13 @@ from dualarm.training.exploration import Exploration
 from dualarm.training.rounds import run_round
 from dualarm.training.shaping import BatchShaping
 from dualarm.training.checkpointing import restore_trainer, trainer_state
+from dualarm.training.lifecycle import resume_run, start_run
 from dualarm.training.records import (episode_rows, eval_row, log_evaluation, log_round,
                                       metrics_columns)
 from dualarm.training.storage import RoundStorage, hindsight_sampler
 from dualarm.training.run_dir import (AVERAGE_EVAL_COLUMNS, EVAL_COLUMNS, CsvLog,
-                                      RunPaths, load_checkpoint, save_checkpoint)
-from dualarm.training.vector import PROBE_SEED_BASE, BaxterVector, ParallelEnvVector, VectorEnv, seeds_for
+                                      RunPaths, save_checkpoint)
+from dualarm.training.vector import PROBE_SEED_BASE, make_vector_env, seeds_for
 
 
 class TrainingDiverged(DualarmError, RuntimeError):
@@ -56,28 +55,6 @@ class TrainResult:
     env_steps: int
     wall_time_s: float
     last_eval: dict | None
-
-
-def make_vector_env(config: TrainConfig, num_envs: int,
-                    make_env: Callable[[], object] | None = None, constraints=None,
-                    training: bool = False, start: int = 0) -> VectorEnv:
-    """Copies of the run's environment: the Baxter task, or ``make_env()`` (a ParallelEnv).
-
-    ``constraints``: the run's ``ConstraintSet`` if already loaded (else read from the config).
-    ``training``: the copies that collect training episodes, which start as
-    ``config.start_probs`` says; otherwise (evaluation) every episode starts normally, or,
-    with ``start`` k > 0, with both arms at sub-task ``START_CLASSES[k]`` (curriculum probes,
-    ``dualarm eval --start``).
-    """
-    if make_env is not None:
-        return ParallelEnvVector(make_env, num_envs)
-    if constraints is None:
-        constraints = config.load_constraints()
-    probs = config.start_probs if training else None
-    if start:
-        probs = tuple(float(k == start) for k in range(len(START_CLASSES)))
-    return BaxterVector(config.task_config(), constraints, num_envs, probs,
-                        approach_starts=training and config.approach_starts)
 
 
 class Trainer:
@@ -166,25 +143,7 @@ class Trainer:
             DirectoryBusy: another process holds ``out``.
             InputError: ``out`` holds a run already.
         """
-        paths = RunPaths(out)
-        lock = DirectoryLock(paths.root, "dualarm train")
-        try:
-            if paths.config.exists() or paths.latest.exists():
-                raise InputError(f"{paths.root} already holds a run: resume it with "
-                                 f"`dualarm train --resume {paths.root}` or choose another --out")
-            trainer = cls(config, paths, make_env, progress)
-            source = config.constraints_file() if make_env is None else None
-            if source is not None:
-                atomic_copy(source, paths.constraints)
-                trainer.config = config.with_(constraints=str(paths.constraints))
-            trainer.stored_config().save(paths.config)
-            trainer.metrics.truncate(0)
-            trainer.eval_log.truncate(0)
-        except BaseException:
-            lock.release(remove_if_created=True)
-            raise
-        trainer._lock = lock
-        return trainer
+        return start_run(cls, config, out, make_env, progress)
 
     @classmethod
     def resume(cls, out: str | Path, episodes: int | None = None, make_env=None,
@@ -200,33 +159,7 @@ class Trainer:
             InputError: no run there, or ``episodes`` below the episodes done.
             CheckpointError: the checkpoint or the logs do not continue each other.
         """
-        paths = RunPaths(out)
-        if not paths.config.exists():
-            raise InputError(f"{paths.root}: no run to resume (no config.yaml there)")
-        lock = DirectoryLock(paths.root, "dualarm train")
-        try:
-            config = TrainConfig.load_saved(paths.config)
-            if episodes is not None:
-                config = config.with_(episodes=episodes)
-            trainer = cls(config, paths, make_env, progress)
-            if paths.latest.exists():
-                trainer.load(load_checkpoint(paths.latest))
-            if episodes is not None and episodes < trainer.episodes:
-                raise InputError(f"{paths.root}: the run has done {trainer.episodes} episodes, "
-                                 f"more than --episodes {episodes}; nothing was changed")
-            metrics = trainer.metrics.verified(trainer.episodes)
-            evaluations = trainer.eval_log.verified(trainer.eval_rows)
-            if episodes is not None:
-                trainer.stored_config().save(paths.config)
-            trainer.metrics.rewrite(metrics)
-            trainer.eval_log.rewrite(evaluations)
-            for litter in leftover_temporaries(paths.checkpoints):   # a write killed mid-way
-                litter.unlink()
-        except BaseException:
-            lock.release()
-            raise
-        trainer._lock = lock
-        return trainer
+        return resume_run(cls, out, episodes, make_env, progress)
 
     def close(self) -> None:
         """Release the run directory's lock (also released when the process ends)."""

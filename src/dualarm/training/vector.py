@@ -17,6 +17,8 @@ import gymnasium
 import numpy as np
 
 from dualarm.task import ARMS
+from dualarm.training.config import TrainConfig
+from dualarm.training.curriculum import START_CLASSES
 
 
 @dataclass
@@ -204,3 +206,23 @@ the start class and the episode count: fresh placements at every probe, none sha
 training or evaluation."""
 
 
+def make_vector_env(config: TrainConfig, num_envs: int,
+                    make_env: Callable[[], object] | None = None, constraints=None,
+                    training: bool = False, start: int = 0) -> VectorEnv:
+    """Copies of the run's environment: the Baxter task, or ``make_env()`` (a ParallelEnv).
+
+    ``constraints``: the run's ``ConstraintSet`` if already loaded (else read from the config).
+    ``training``: the copies that collect training episodes, which start as
+    ``config.start_probs`` says; otherwise (evaluation) every episode starts normally, or,
+    with ``start`` k > 0, with both arms at sub-task ``START_CLASSES[k]`` (curriculum probes,
+    ``dualarm eval --start``).
+    """
+    if make_env is not None:
+        return ParallelEnvVector(make_env, num_envs)
+    if constraints is None:
+        constraints = config.load_constraints()
+    probs = config.start_probs if training else None
+    if start:
+        probs = tuple(float(k == start) for k in range(len(START_CLASSES)))
+    return BaxterVector(config.task_config(), constraints, num_envs, probs,
+                        approach_starts=training and config.approach_starts)
