@@ -15,7 +15,9 @@ learner's action space, with the rewards the environment computes:
 3. **Follow.** In cartesian control, each step commands each grip site towards the path's next
    point, ``gain`` x the offset in units of the largest step (the scripted expert's rule), and
    the grip closed or open as recorded; after the path, the last point is held to the end of
-   the episode.
+   the episode. Or, with ``following="phase"`` (``track_path``), by where each hand is on
+   the path rather than by the time: the same path and gripper events at the robot's pace,
+   each action a function of the state.
 """
 
 from __future__ import annotations
