@@ -233,8 +233,7 @@ class DADDPG:
         o = norm(batch["obs"]).transpose(0, 1)                     # (A, B, O)
         o2 = norm(batch["next_obs"]).transpose(0, 1)
         a_taken = batch["act"].transpose(0, 1)                     # (A, B, U)
-        rew = batch["rew"] if batch["rew"].dim() == 3 else batch["rew"].unsqueeze(-1)
-        r = rew.transpose(0, 1) * self._scale                      # (A, B, 1)
+        r = batch["rew"].unsqueeze(-1).transpose(0, 1) * self._scale   # (A, B, 1)
         if "shaping" in batch:                                     # r is a new tensor: add in place
             r[..., 0] += batch["shaping"].transpose(0, 1)
         not_done = (1.0 - batch["done"]).view(1, -1, 1)            # (1, B, 1)

@@ -12,19 +12,16 @@ class ReplayBuffer:
     """Transitions of a two-agent (or A-agent) environment, stored as float32 arrays.
 
     Shapes: obs and next_obs (capacity, A, obs_size), act (capacity, A, act_size),
-    rew (capacity, A), or (capacity, A, reward_size) for rewards split into components
-    (``reward_size`` > 1, the critics' reward heads), done (capacity,) 1.0 where the episode terminated (not truncated:
+    rew (capacity, A), done (capacity,) 1.0 where the episode terminated (not truncated:
     a time limit is not a terminal state, so it still bootstraps), left (capacity,) how many transitions of the same episode follow this one in storage
     (hindsight relabelling draws its future goals from them; 0 when episodes are not stored
     whole).
     """
 
-    def __init__(self, capacity: int, num_agents: int, obs_size: int, act_size: int,
-                 reward_size: int = 1):
+    def __init__(self, capacity: int, num_agents: int, obs_size: int, act_size: int):
         self.capacity = int(capacity)
-        rew = (num_agents,) if reward_size == 1 else (num_agents, reward_size)
         self.shapes = {"obs": (num_agents, obs_size), "act": (num_agents, act_size),
-                       "rew": rew, "next_obs": (num_agents, obs_size), "done": (),
+                       "rew": (num_agents,), "next_obs": (num_agents, obs_size), "done": (),
                        "left": ()}
         # np.empty of a large capacity reserves address space only: pages fill as we write.
         self.data = {k: np.empty((self.capacity, *s), dtype=np.float32) for k, s in self.shapes.items()}

@@ -232,24 +232,28 @@ class PathProgress:
         self.closes = bool(len(shut))
         self.s = 0.0
 
-    def point(self, s: float) -> np.ndarray:
-        """The path's point (3,) m at arc length ``s`` m (clipped to the path)."""
-        s = float(np.clip(s, 0.0, self.arc[-1]))
-        return np.array([np.interp(s, self.arc, self.path[:, j]) for j in range(3)])
+    def point(self, s) -> np.ndarray:
+        """The path's points (..., 3) m at arc lengths ``s`` (...,) m (held at the path's ends
+        beyond them)."""
+        return np.stack([np.interp(s, self.arc, self.path[:, j]) for j in range(3)], axis=-1)
+
+    def limit(self, fingers_closed: bool) -> float:
+        """How far along the path (m of arc length) the arm may go: to the grasp until the
+        fingers have closed, then to the end."""
+        return self.arc[-1] if (fingers_closed or not self.closes) else self.grasp_at
 
     def update(self, grip: np.ndarray, fingers_closed: bool, window: float) -> float:
         """Advance to the path's nearest point to ``grip`` (3,) m within ``window`` m of
-        arc length ahead (never back), and not past the grasp before ``fingers_closed``.
+        arc length ahead (never back), and not past ``limit(fingers_closed)``.
         Returns the progress, m of arc length."""
-        limit = self.arc[-1] if (fingers_closed or not self.closes) else self.grasp_at
+        limit = self.limit(fingers_closed)
         lo = self.s
         hi = min(self.s + window, limit)
         if hi <= lo:
             self.s = min(max(self.s, lo), limit)
             return self.s
         ss = np.linspace(lo, hi, 33)
-        pts = np.stack([np.interp(ss, self.arc, self.path[:, j]) for j in range(3)], axis=1)
-        self.s = float(ss[np.argmin(np.linalg.norm(pts - grip, axis=1))])
+        self.s = float(ss[np.argmin(np.linalg.norm(self.point(ss) - grip, axis=1))])
         return self.s
 
 
@@ -279,10 +283,9 @@ def track_path(env, name: str, path: np.ndarray, closed: np.ndarray, scene: Scen
             s = arm.update(grip_now[a], bool(command[a] > 0 and fingers[a]), 3 * step)
             near = np.linalg.norm(grip_now[a] - arm.point(arm.grasp_at)) < grasp_radius
             if arm.closes and s >= arm.grasp_at - 1e-9 and near:
-                command[a] = 1.0
+                command[a] = 1.0                  # from now on: the grip closes
             error[a] = max(error[a], np.linalg.norm(grip_now[a] - arm.point(s)))
-            ahead = arm.point(min(s + lookahead, arm.arc[-1] if command[a] > 0 and fingers[a]
-                                  else (arm.grasp_at if arm.closes else arm.arc[-1])))
+            ahead = arm.point(min(s + lookahead, arm.limit(bool(command[a] > 0 and fingers[a]))))
             move[a] = gain * (ahead - grip_now[a]) / step
         return np.clip(np.concatenate([move, command[:, None]], axis=1), -1.0, 1.0)
 

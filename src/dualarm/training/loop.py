@@ -236,7 +236,7 @@ class Trainer:
             timing["act_s"] += time.perf_counter() - t
             return actions
 
-        storage = RoundStorage(self.buffer, self.mirror, c.her_share > 0, n, lambda step: step.reward)
+        storage = RoundStorage(self.buffer, self.mirror, c.her_share > 0, n)
 
         def store(obs, actions, step, live):
             t = time.perf_counter()

@@ -38,18 +38,17 @@ class RoundStorage:
         whole: store each episode in one piece at the end of the round (hindsight needs the
             episode), else each step as it comes.
         n: episodes in the round (copies 0..n-1).
-        reward_of: maps an environment step to the rewards stored, (k, A).
     """
 
-    def __init__(self, buffer: ReplayBuffer, mirror, whole: bool, n: int, reward_of):
-        self.buffer, self.mirror, self.whole, self.reward_of = buffer, mirror, whole, reward_of
+    def __init__(self, buffer: ReplayBuffer, mirror, whole: bool, n: int):
+        self.buffer, self.mirror, self.whole = buffer, mirror, whole
         self.episodes: list[list] = [[] for _ in range(n)]
         self.seen: list[np.ndarray] = []
 
     def store(self, obs: np.ndarray, actions: np.ndarray, step, live: np.ndarray) -> None:
         """One step of the copies ``live``: obs (N, A, O), actions (N, A, U), the step's
         ``VectorStep``."""
-        reward = self.reward_of(step)
+        reward = step.reward
         if not self.whole:
             self.buffer.add(obs[live], actions[live], reward[live], step.obs[live],
                             step.terminated[live])
