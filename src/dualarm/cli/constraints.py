@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dualarm.cli.arguments import InputPath, OutputDir, OutputFile, non_negative, positive_int
+from dualarm.cli.arguments import (InputPath, OutputDir, OutputFile, non_negative, positive_int,
+                                   seed_number)
 from dualarm.cli.demos import (check_suffix, demo_dir_argument, demo_dir_of, labels_option,
                                mapping_options, mapping_options_of)
 from dualarm.errors import InputError
@@ -155,7 +156,7 @@ def add_constraints_command(sub) -> None:
     ana.add_argument("constraints", type=InputPath, nargs="+", metavar="FILE.yaml",
                      help="one or more constraints files, compared side by side")
     ana.add_argument("--episodes", type=positive_int, default=100, help="expert episodes (default: 100)")
-    ana.add_argument("--seed", type=int, default=1000, help="seed of the first episode (default: 1000)")
+    ana.add_argument("--seed", type=seed_number, default=1000, help="seed of the first episode (default: 1000)")
     ana.add_argument("-o", "--output", type=OutputDir, metavar="DIR",
                      help="write constraints_volume_fractions.png and constraints_expert_inside.png here")
     ana.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

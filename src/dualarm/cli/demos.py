@@ -176,7 +176,7 @@ def add_demos_command(sub) -> None:
     gen.add_argument("-o", "--output", type=OutputDir, required=True, metavar="DIR",
                      help="the demonstration folder to write (recordings, labels.csv, scene.csv)")
     gen.add_argument("--count", type=positive_int, default=10, help="number of demonstrations (default: 10)")
-    gen.add_argument("--seed", type=int, default=0, help="seed (default: 0)")
+    gen.add_argument("--seed", type=seed_number, default=0, help="seed (default: 0)")
     gen.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     gen.set_defaults(func=cmd_demos_generate)
 

@@ -105,13 +105,10 @@ def policy_human_likeness(run: str | Path, postures: DemoPostures, constraints,
                           episodes: int = 10, seed: int = 0) -> HumanLikeness:
     """Both measures on ``episodes`` deterministic episodes of a run's best policy, from
     ``reset(seed + k)`` (every step of each episode, success or not)."""
-    from dualarm.envs.baxter import BaxterReachGraspAlign
     from dualarm.envs.rollout import run_episode
-    from dualarm.training.policy import load_policy, single_env_policy
+    from dualarm.training.policy import policy_env
 
-    config, agent, _ = load_policy(Path(run), "best")
-    env = BaxterReachGraspAlign(config.task_config(), config.load_constraints())
-    policy = single_env_policy(agent)
+    _, env, policy, _ = policy_env(Path(run), "best")
     inside, posture = [], []
     try:
         for k in range(episodes):
@@ -152,9 +149,9 @@ def measure_runs(runs, episodes: int = 10) -> tuple[dict[str, list[HumanLikeness
     from dualarm.demos.formats import DEFAULT_DEMO_DIR
     from dualarm.demos.loading import load_demo_dir
     from dualarm.errors import DualarmError
+    from dualarm.training.run_dir import RunPaths
 
-    with_policy = [r for r in runs if any((Path(r.path) / "checkpoints" / name).exists()
-                                          for name in ("best_policy.pt", "latest.pt"))]
+    with_policy = [r for r in runs if RunPaths(r.path).best.exists() or RunPaths(r.path).latest.exists()]
     if not with_policy:
         return {}, None, []
     demos, labels = load_demo_dir(DEFAULT_DEMO_DIR)

@@ -127,17 +127,24 @@ def single_env_policy(agent: DADDPG):
     return lambda obs: agent.act(np.asarray(obs)[None])[0]
 
 
+def policy_env(run: Path, checkpoint: str = "best"):
+    """A run's policy in a fresh copy of its task: (config, env, policy obs (2, O) -> actions
+    (2, U), checkpoint info); the env has the run's constraints (close it when done)."""
+    from dualarm.envs.baxter import BaxterReachGraspAlign
+
+    config, agent, info = load_policy(run, checkpoint)
+    env = BaxterReachGraspAlign(config.task_config(), config.load_constraints())
+    return config, env, single_env_policy(agent), info
+
+
 def policy_episode(run: Path, checkpoint: str, seed: int, camera: str | None = None,
                    size: tuple[int, int] | None = None, progress: bool = False):
     """One episode of a run's deterministic policy from ``reset(seed)`` (``progress``: a bar
     of its steps on stderr, for the seconds rendering takes). Returns (env, episode,
     checkpoint info)."""
-    from dualarm.envs.baxter import BaxterReachGraspAlign
     from dualarm.envs.rollout import run_episode
-    from dualarm.training.policy import load_policy, single_env_policy
 
-    config, agent, info = load_policy(run, checkpoint)
-    env = BaxterReachGraspAlign(config.task_config(), config.load_constraints())
+    config, env, policy, info = policy_env(run, checkpoint)
     if size:
         env.render_size = size
     bar = None
@@ -148,7 +155,7 @@ def policy_episode(run: Path, checkpoint: str, seed: int, camera: str | None = N
         bar = tqdm(total=config.task_config().max_episode_steps, unit="step", desc="render",
                    file=sys.stderr)
     try:
-        episode = run_episode(env, single_env_policy(agent), seed, camera=camera,
+        episode = run_episode(env, policy, seed, camera=camera,
                               on_step=bar.update if bar is not None else None)
     finally:
         if bar is not None:
