@@ -323,7 +323,8 @@ def test_extracted_file_round_trip_with_provenance(tmp_path, small_dir):
     assert p["demos"][1]["sha256"] == file_sha256(small_dir / "b.csv")
     assert p["labels"]["sha256"] == file_sha256(small_dir / "labels.csv")
     assert p["options"] == {"segments": "reach+grasp,align", "percentile": 1.0, "margin_rad": 0.02,
-                            "lowpass_hz": 6.0, "calib_seconds": 1.0, "calib_start": 0.0, "heading": "auto"}
+                            "lowpass_hz": 6.0, "calib_seconds": 1.0, "calib_start": 0.0, "calib_pose": "npose",
+                            "heading": "auto"}
     data = yaml.safe_load(path.read_text())
     assert data["joints"] == list(JOINT_COLUMNS) and data["units"] == "rad" and data["schema_version"] == 1
 

@@ -242,3 +242,19 @@ def run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("run", type=InputPath, metavar="DIR", help="a run directory of dualarm train")
     p.add_argument("--checkpoint", choices=("best", "latest"), default="best",
                    help="the best evaluated policy or the last checkpoint (default: best)")
+
+
+def calibration_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of the calibration that turns a recording into joint angles (every command
+    that maps recordings takes them, spelled and explained alike)."""
+    p.add_argument("--calib-seconds", type=positive, default=1.0, metavar="S",
+                   help="length of the calibration window, s (default: 1.0)")
+    p.add_argument("--calib-start", type=non_negative, default=0.0, metavar="S",
+                   help="start of the calibration window, s after the first sample (default: 0)")
+    p.add_argument("--calib-pose", choices=("npose", "tpose"), default="npose",
+                   help="the pose held in the calibration window: npose, the zero pose (arms hanging "
+                        "by the sides), or tpose (arms out to the sides, as BVH and MVNX recordings "
+                        "often start) (default: npose)")
+    p.add_argument("--heading", choices=("auto", "off"), default="auto",
+                   help="fit the elbow and wrist as hinges and correct what they reveal: sensor "
+                        "heading offsets, the arm's facing, the forearm twist (default: auto)")

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dualarm.cli.arguments import (InputPath, OutputDir, OutputFile, non_negative, positive_int,
-                                   seed_number)
+from dualarm.cli.arguments import (InputPath, OutputDir, OutputFile, calibration_arguments, non_negative,
+                                   positive_int, seed_number)
 from dualarm.demos.formats import DEFAULT_DEMO_DIR, LABELS_NAME
 from dualarm.demos.loading import DEFAULT_LOWPASS_HZ, MappingOptions
 from dualarm.errors import InputError
@@ -24,7 +24,7 @@ def demo_dir_of(args: argparse.Namespace) -> Path:
 def mapping_options_of(args: argparse.Namespace) -> MappingOptions:
     """The mapping options (calibration window, heading, low-pass) the command was given."""
     return MappingOptions(calib_seconds=args.calib_seconds, calib_start=args.calib_start, heading=args.heading,
-                          lowpass_hz=args.lowpass_hz)
+                          lowpass_hz=args.lowpass_hz, calib_pose=args.calib_pose)
 
 
 def check_suffix(path: Path, suffixes: tuple[str, ...]) -> None:
@@ -86,7 +86,8 @@ def cmd_demos_segment(args: argparse.Namespace) -> int:
 
 
 def demo_dir_argument(p: argparse.ArgumentParser, flag: bool = False) -> None:
-    help_ = "folder of IMU recordings (.csv, .csv.gz, .sto, .mat); default: the shipped set of 10"
+    help_ = ("folder of recordings (IMU .csv, .csv.gz, .sto, .mat; suit .bvh, .mvnx); default: the "
+             "shipped set of 10")
     if flag:
         p.add_argument("--demos", dest="demo_dir", type=InputPath, metavar="DIR", help=help_)
     else:
@@ -94,12 +95,7 @@ def demo_dir_argument(p: argparse.ArgumentParser, flag: bool = False) -> None:
 
 
 def mapping_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--calib-seconds", type=non_negative, default=1.0, metavar="S",
-                   help="zero-pose calibration window, s (default: 1.0)")
-    p.add_argument("--calib-start", type=non_negative, default=0.0, metavar="S",
-                   help="start of the calibration window, s after the first sample (default: 0)")
-    p.add_argument("--heading", choices=("auto", "off"), default="auto",
-                   help="heading-offset correction of the mapping (default: auto)")
+    calibration_arguments(p)
     p.add_argument("--lowpass-hz", type=non_negative, default=DEFAULT_LOWPASS_HZ, metavar="HZ",
                    help=f"zero-phase low-pass cut-off on the joint angles, 0 for none "
                         f"(default: {DEFAULT_LOWPASS_HZ:g})")

@@ -8,21 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dualarm.cli.arguments import InputPath, OutputDir, OutputFile
-
-
-def _seconds(allow_zero: bool):
-    """An argparse type: a finite number of seconds, > 0 (or >= 0 with ``allow_zero``)."""
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-        if not np.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
-            raise argparse.ArgumentTypeError(
-                f"must be a number of seconds {'>=' if allow_zero else '>'} 0, got {text!r}")
-        return value
-    return parse
+from dualarm.cli.arguments import InputPath, OutputDir, OutputFile, calibration_arguments
 
 
 def mapping_summary(result, rec) -> str:
@@ -59,7 +45,7 @@ def map_file(path: Path, args: argparse.Namespace):
 
     rec = read_recording(path, sensor_map=args.sensor_map)
     return rec, map_recording(rec, calib_seconds=args.calib_seconds, calib_start=args.calib_start,
-                              heading=args.heading)
+                              heading=args.heading, calib_pose=args.calib_pose)
 
 
 def write_joint_table(path: Path, time: np.ndarray, q: np.ndarray) -> None:
@@ -148,17 +134,13 @@ def add_mocap_command(sub) -> None:
 
     def mapping_options(p: argparse.ArgumentParser) -> None:
         p.add_argument("input", type=InputPath, metavar="INPUT",
-                       help="recording: .csv (or .csv.gz), OpenSim .sto or MATLAB .mat")
-        p.add_argument("--calib-seconds", type=_seconds(allow_zero=False), default=1.0, metavar="S",
-                       help="length of the zero-pose calibration window, s (default: 1.0)")
-        p.add_argument("--calib-start", type=_seconds(allow_zero=True), default=0.0, metavar="S",
-                       help="start of the calibration window, s after the first sample (default: 0)")
+                       help="recording: IMU .csv (or .csv.gz), OpenSim .sto or MATLAB .mat; suit .bvh "
+                            "or Xsens .mvnx")
+        calibration_arguments(p)
         p.add_argument("--sensor-map", type=_name_map, metavar="NAME=SENSOR,...",
                        help="the file's sensor (or column prefix) names for ours, e.g. "
-                            "'RUA=right_upper_arm,RFA=right_forearm,...'")
-        p.add_argument("--heading", choices=("auto", "off"), default="auto",
-                       help="fit the elbow and wrist as hinges and correct what they reveal: "
-                            "sensor heading offsets, the arm's facing, the forearm twist (default: auto)")
+                            "'RUA=right_upper_arm,RFA=right_forearm,...'; for BVH and MVNX the "
+                            "segment names, e.g. 'L_UpArm=left_upper_arm,...'")
 
     joints = msub.add_parser("joints", help="write the 14 joint angles of both arms as CSV",
                              description="Write time,left_q1..left_q7,right_q1..right_q7 (rad), one row "

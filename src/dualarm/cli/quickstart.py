@@ -15,7 +15,8 @@ def cmd_quickstart(args: argparse.Namespace) -> int:
     """Map the built-in example recording and write tables and figures."""
     out: Path = args.output
     out.mkdir(parents=True, exist_ok=True)
-    defaults = argparse.Namespace(calib_seconds=1.0, calib_start=0.0, heading="auto", sensor_map=None)
+    defaults = argparse.Namespace(calib_seconds=1.0, calib_start=0.0, calib_pose="npose", heading="auto",
+                                  sensor_map=None)
     rec, result = map_file(EXAMPLE_RECORDING, defaults)
     write_joint_table(out / "human_joint_angles.csv", result.joints.time, result.joints.q)
     write_joint_table(out / "baxter_joint_angles.csv", result.joints.time, result.robot.q)

@@ -157,7 +157,8 @@ def extraction_provenance(demos: Sequence[DemoJoints], labels_file: str | os.Pat
         "labels": {"origin": labels_origin},
         "options": {"segments": segments, "percentile": float(percentile), "margin_rad": float(margin),
                     "lowpass_hz": float(options.lowpass_hz or 0.0), "calib_seconds": float(options.calib_seconds),
-                    "calib_start": float(options.calib_start), "heading": options.heading},
+                    "calib_start": float(options.calib_start), "calib_pose": options.calib_pose,
+                    "heading": options.heading},
     }
     if labels_file is not None:
         prov["labels"].update({"file": Path(labels_file).name, "sha256": file_sha256(labels_file)})

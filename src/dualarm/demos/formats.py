@@ -32,7 +32,7 @@ SCENE_NAME = "scene.csv"
 #: Columns of the gripper events in a demonstration CSV (1 = hand closed).
 GRIP_COLUMNS = ("left_grip", "right_grip")
 #: Recording file endings recognised in a demonstration folder.
-DEMO_EXTENSIONS = (".csv.gz", ".csv", ".sto", ".mat")
+DEMO_EXTENSIONS = (".csv.gz", ".csv", ".sto", ".mat", ".bvh", ".mvnx")
 #: Decimal places of the quaternions in written demonstration files (quantisation 5e-7,
 #: far below the sensor noise).
 QUAT_DECIMALS = 6

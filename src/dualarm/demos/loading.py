@@ -85,6 +85,7 @@ class MappingOptions:
     Attributes:
         calib_seconds: length of the zero-pose calibration window, s.
         calib_start: its start, s after the first sample.
+        calib_pose: the pose held in the window, "npose" (the zero pose) or "tpose".
         heading: "auto" or "off" (heading-offset correction).
         lowpass_hz: cut-off of the zero-phase low-pass filter on the joint angles, Hz; 0 for none.
     """
@@ -93,6 +94,7 @@ class MappingOptions:
     calib_start: float = 0.0
     heading: str = "auto"
     lowpass_hz: float = DEFAULT_LOWPASS_HZ
+    calib_pose: str = "npose"
 
 
 def load_demo(path: str | os.PathLike, name: str | None = None,
@@ -104,7 +106,7 @@ def load_demo(path: str | os.PathLike, name: str | None = None,
     path = Path(path)
     rec = read_recording(path)
     result = map_recording(rec, calib_seconds=options.calib_seconds, calib_start=options.calib_start,
-                           heading=options.heading)
+                           heading=options.heading, calib_pose=options.calib_pose)
     time = rec.time - rec.time[0]
     q = baxter_joints(time, result.joints.q, options.lowpass_hz, str(path))
     grip = read_grip_events(path) if with_grip else None

@@ -219,8 +219,8 @@ def twist_mountings(calib: Calibration, estimates: list[HeadingEstimate]) -> Cal
     return replace(calib, mounting=mounting)
 
 
-def detect_and_correct(rec: Recording, calib_seconds: float,
-                       calib_start: float = 0.0) -> tuple[Recording, list[HeadingEstimate]]:
+def detect_and_correct(rec: Recording, calib_seconds: float, calib_start: float = 0.0,
+                       calib_pose: str = "npose") -> tuple[Recording, list[HeadingEstimate]]:
     """Estimate heading offsets and return the corrected recording with the estimates."""
-    estimates = estimate_heading_offsets(rec, calibrate(rec, calib_seconds, calib_start))
+    estimates = estimate_heading_offsets(rec, calibrate(rec, calib_seconds, calib_start, calib_pose))
     return correct_heading(rec, estimates), estimates

@@ -1,4 +1,5 @@
-"""Read and write IMU recordings (CSV, OpenSim ``.sto``, MATLAB ``.mat``) as :class:`Recording` values."""
+"""Read and write IMU recordings (CSV, OpenSim ``.sto``, MATLAB ``.mat``) as :class:`Recording` values;
+read motion-capture suits' segment orientations (BVH, Xsens MVNX) the same way."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import csv
 import gzip
 import io
 import os
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Mapping
 from itertools import repeat
 from pathlib import Path
 
@@ -14,10 +15,10 @@ import numpy as np
 
 from dualarm.atomic import atomic_open
 from dualarm.errors import InputError
-from dualarm.mocap.recording import ARMS, SEGMENTS, SENSORS, Recording, sensor_name
+from dualarm.mocap.recording import ARMS, SEGMENTS, SENSORS, Recording, resolve_sensor_names, sensor_name
 
 #: Accepted file name endings, matched case-insensitively.
-EXTENSIONS: tuple[str, ...] = (".csv", ".csv.gz", ".sto", ".mat")
+EXTENSIONS: tuple[str, ...] = (".csv", ".csv.gz", ".sto", ".mat", ".bvh", ".mvnx")
 
 # Column suffixes of the CSV format: quaternion (scalar first), accelerometer, gyroscope.
 _Q, _A, _G = ("_qw", "_qx", "_qy", "_qz"), ("_ax", "_ay", "_az"), ("_gx", "_gy", "_gz")
@@ -59,7 +60,8 @@ def read_recording(path: str | os.PathLike, *, sensor_map: Mapping[str, str] | N
     """Read a recording, choosing the reader by the file name's extension.
 
     Args:
-        path: a ``.csv``, ``.csv.gz``, ``.sto`` or ``.mat`` file.
+        path: a ``.csv``, ``.csv.gz``, ``.sto`` or ``.mat`` file of IMU orientations, or a
+            ``.bvh`` or ``.mvnx`` file of a suit's segments (:mod:`dualarm.mocap.segments`).
         sensor_map: file's name for a sensor -> one of :data:`SENSORS`; overrides the
             default naming of each format (see the readers).
 
@@ -71,7 +73,11 @@ def read_recording(path: str | os.PathLike, *, sensor_map: Mapping[str, str] | N
     ext = next((e for e in sorted(EXTENSIONS, key=len, reverse=True) if name.endswith(e)), None)
     if ext is None:
         raise InputError(f"unknown file type; accepted extensions: {', '.join(EXTENSIONS)}", source=str(path))
-    reader = {".csv": read_csv, ".csv.gz": read_csv, ".sto": read_sto, ".mat": read_mat}[ext]
+    from dualarm.mocap.bvh import read_bvh
+    from dualarm.mocap.mvnx import read_mvnx
+
+    reader = {".csv": read_csv, ".csv.gz": read_csv, ".sto": read_sto, ".mat": read_mat,
+              ".bvh": read_bvh, ".mvnx": read_mvnx}[ext]
     return reader(path, sensor_map=sensor_map)
 
 
@@ -108,7 +114,7 @@ def read_csv(path: str | os.PathLike, *, sensor_map: Mapping[str, str] | None = 
         raise InputError("no data rows after the header", source=source)
 
     found = {c[:-3] for c in header if c[-3:] in _Q + _A + _G}
-    prefix = _resolve_names(found, _own_names(), sensor_map, source, "column prefix", require=False)
+    prefix = resolve_sensor_names(found, _own_names(), sensor_map, source, "column prefix", require=False)
     plan: dict[str, dict[str, list[str]]] = {}  # sensor -> kind -> its columns
     for s in SENSORS:
         p = prefix.get(s, s)
@@ -168,7 +174,7 @@ def read_sto(path: str | os.PathLike, *, sensor_map: Mapping[str, str] | None = 
     rows = [line.rstrip() for line in lines[end + 2:] if line.strip()]
     if not rows:
         raise InputError("no data rows after the column header", source=source)
-    names = _resolve_names(header[1:], _sto_default_map(), sensor_map, source, "column")
+    names = resolve_sensor_names(header[1:], _sto_default_map(), sensor_map, source, "column")
     idx = [header.index(names[s]) for s in SENSORS]
 
     # Flatten each row to "time,w,x,y,z,w,x,y,z,..." so one fast numeric parse does all.
@@ -226,7 +232,7 @@ def read_mat(path: str | os.PathLike, *, sensor_map: Mapping[str, str] | None = 
     if time.ndim != 1:
         raise InputError(f"time must be a vector, got shape {time.shape}", source=source, column=tname)
 
-    names = _resolve_names(variables, _mat_default_map(), sensor_map, source, "variable")
+    names = resolve_sensor_names(variables, _mat_default_map(), sensor_map, source, "variable")
     tables: dict[str, dict[str, np.ndarray]] = {"quat": {}, "acc": {}, "gyr": {}}
     for s, var in names.items():
         fields = getattr(m[var], "_fieldnames", None)
@@ -346,42 +352,6 @@ def _parse_floats(lines: list[str], names: list[str], source: str,
                     raise InputError(f"not a number: {cells[j].strip()!r}", source=source,
                                      row=i + 1, column=names[j]) from None
         raise InputError(f"cannot read the numbers ({e})", source=source) from None
-
-
-def _resolve_names(found: Iterable[str], default: Mapping[str, str], sensor_map: Mapping[str, str] | None,
-                   source: str, what: str, require: bool = True) -> dict[str, str]:
-    """Pick the name in the file of each sensor: sensor -> name.
-
-    Entries of ``sensor_map`` (file name -> sensor) win over ``default``; two names of
-    one sensor at the same level are ambiguous. With ``require``, every sensor must
-    be found.
-    """
-    found = list(dict.fromkeys(found))
-    user = dict(sensor_map or {})
-    for name, s in user.items():
-        if s not in SENSORS:
-            raise InputError(f"sensor_map maps {name!r} to {s!r}, not one of {', '.join(SENSORS)}", source=source)
-        if name not in found:
-            raise InputError(f"sensor_map names {what} {name!r}, which is not in the file; "
-                             f"{what}s found: {', '.join(found) or 'none'}", source=source)
-    chosen: dict[str, str] = {}
-    for level in (user, default):
-        picked: dict[str, str] = {}
-        for name in found:
-            s = level.get(name)
-            if s is None or s in chosen:
-                continue
-            if s in picked:
-                raise InputError(f"{what}s {picked[s]!r} and {name!r} both give sensor {s}; "
-                                 "choose one with sensor_map", source=source)
-            picked[s] = name
-        chosen.update(picked)
-    for s in SENSORS if require else ():
-        if s not in chosen:
-            expected = [n for n, t in {**default, **user}.items() if t == s]
-            raise InputError(f"no {what} for sensor {s} (expected {' or '.join(map(repr, expected))}); "
-                             f"{what}s found: {', '.join(found) or 'none'}", source=source)
-    return chosen
 
 
 def _assemble(source: str, time: np.ndarray, quat: dict[str, np.ndarray], acc: dict[str, np.ndarray],

@@ -56,6 +56,29 @@ _MIRROR_SAGITTAL = np.diag([1.0, -1.0, 1.0])
 R0_LEFT = _MIRROR_SAGITTAL @ R0_RIGHT @ _MIRROR_SAGITTAL
 ZERO_POSE_SEGMENT_ROTATION = {"left": R0_LEFT, "right": R0_RIGHT}
 
+#: Calibration poses: ``npose`` is the zero pose (arms hanging by the sides); ``tpose`` has
+#: both arms raised sideways to the horizontal (abducted 90 degrees about the forward axis),
+#: the rest pose of most BVH skeletons and a common start of suit recordings. In either, the
+#: palms may face forward, in or down: the forearm's twist is found by the heading fit.
+CALIB_POSES: tuple[str, ...] = ("npose", "tpose")
+POSE_NAMES = {"npose": "zero pose", "tpose": "T-pose"}
+
+
+def calibration_pose_rotation(arm: str, pose: str = "npose") -> np.ndarray:
+    """(3, 3) the segment frames of ``arm`` in G in the calibration ``pose`` (all three alike).
+
+    ``npose``: ``R^0`` of the zero pose. ``tpose``: ``Rx(-+90 deg) R^0``, the arm turned out
+    to the side (the right arm to -y_G, the left to +y_G) about the forward axis x_G.
+    """
+    if pose not in CALIB_POSES:
+        raise InputError(f"calibration pose must be one of {', '.join(CALIB_POSES)}, got {pose!r}")
+    R0 = ZERO_POSE_SEGMENT_ROTATION[arm]
+    if pose == "npose":
+        return R0
+    angle = np.pi / 2 if arm == "left" else -np.pi / 2
+    return Rotation.from_euler("x", angle).as_matrix() @ R0
+
+
 #: Below this |cos q2| the shoulder is treated as singular (q1 held, q1 -+ q3 solved).
 GIMBAL_EPS = 1e-9
 #: Default length of the calibration window at the start of a recording (s).
@@ -123,21 +146,26 @@ def calibration_window(rec: Recording, seconds: float, start: float = 0.0) -> np
     return np.flatnonzero((elapsed >= start - 1e-9) & (elapsed <= start + seconds + 1e-9))
 
 
-def calibrate(rec: Recording, seconds: float = DEFAULT_CALIB_SECONDS, start: float = 0.0) -> Calibration:
-    """Sensor-to-segment mountings from the zero-pose window of ``rec`` (Eq. 1).
+def calibrate(rec: Recording, seconds: float = DEFAULT_CALIB_SECONDS, start: float = 0.0,
+              pose: str = "npose") -> Calibration:
+    """Sensor-to-segment mountings from the calibration window of ``rec`` (Eq. 1).
+
+    ``R_SI = (R^pose)^T mean(R_GI)``, with ``R^pose`` from :func:`calibration_pose_rotation`
+    (``R^0`` for the zero pose): the joint angles in the window are then those of the pose.
 
     Args:
         seconds: length of the window, s.
         start: seconds from the first sample to the start of the window (0: the
-            recording starts in the zero pose; later, e.g., when the orientation
+            recording starts in the pose; later, e.g., when the orientation
             filter needs time to converge).
+        pose: the pose held in the window, one of :data:`CALIB_POSES`.
 
     Warns (``UserWarning``) when a sensor turns more than 5 degrees inside the window.
     """
     idx = calibration_window(rec, seconds, start)
     mounting, spread = {}, {}
     for arm in ARMS:
-        zero = Rotation.from_matrix(ZERO_POSE_SEGMENT_ROTATION[arm])
+        zero = Rotation.from_matrix(calibration_pose_rotation(arm, pose))
         for seg in SEGMENTS:
             s = sensor_name(arm, seg)
             samples = Rotation.from_quat(rec.quat[s][idx], scalar_first=True)
@@ -146,7 +174,7 @@ def calibrate(rec: Recording, seconds: float = DEFAULT_CALIB_SECONDS, start: flo
             mounting[s] = (zero.inv() * mean).as_quat(scalar_first=True)
             if spread[s] > CALIB_STILLNESS_WARN:
                 warnings.warn(f"{rec.source}: sensor {s} turned {np.rad2deg(spread[s]):.1f} deg inside "
-                              f"the calibration window; is the person still in the zero pose?",
+                              f"the calibration window; is the person still in the {POSE_NAMES[pose]}?",
                               stacklevel=2)
     return Calibration(mounting, (float(rec.time[idx[0]]), float(rec.time[idx[-1]])), spread)
 

@@ -8,7 +8,8 @@ import warnings
 from dualarm.errors import InputError
 from dualarm.mocap.heading import HeadingEstimate, detect_and_correct, twist_mountings
 from dualarm.mocap.joint_angles import (DEFAULT_CALIB_SECONDS, Calibration, JointAngles,
-                                        calibrate, calibration_window, joint_angles)
+                                        calibrate, calibration_pose_rotation, calibration_window,
+                                        joint_angles)
 from dualarm.mocap.recording import Recording
 from dualarm.mocap.retarget import Retargeted, to_baxter
 
@@ -33,14 +34,16 @@ class MappingResult:
 
 
 def map_recording(rec: Recording, *, calib_seconds: float = DEFAULT_CALIB_SECONDS,
-                  calib_start: float = 0.0, heading: str = "auto") -> MappingResult:
+                  calib_start: float = 0.0, heading: str = "auto", calib_pose: str = "npose") -> MappingResult:
     """Calibrate on the first ``calib_seconds``, fix heading offsets, extract and retarget.
 
     Args:
-        rec: IMU recording of both arms; the person holds the zero pose (standing,
-            arms hanging, facing +x) from ``calib_start`` for ``calib_seconds``.
+        rec: IMU recording of both arms; the person holds ``calib_pose`` (standing,
+            facing +x) from ``calib_start`` for ``calib_seconds``.
         calib_seconds: length of the calibration window, s.
         calib_start: start of the calibration window, s after the first sample.
+        calib_pose: the pose held in the window, ``npose`` (the zero pose) or ``tpose``
+            (arms out to the sides; :func:`dualarm.mocap.joint_angles.calibration_pose_rotation`).
         heading: ``'auto'`` corrects the sensor heading offsets, the arm's facing and
             the forearm twist found from the elbow and wrist hinge constraints (see
             :mod:`dualarm.mocap.heading`); ``'off'`` uses the orientations as given.
@@ -48,11 +51,12 @@ def map_recording(rec: Recording, *, calib_seconds: float = DEFAULT_CALIB_SECOND
     if heading not in HEADING_MODES:
         raise InputError(f"heading must be one of {', '.join(HEADING_MODES)}, got {heading!r}")
     calibration_window(rec, calib_seconds, calib_start)  # fail early, before any heavy work
+    calibration_pose_rotation("left", calib_pose)
     estimates: list[HeadingEstimate] = []
     if heading == "auto":
         with warnings.catch_warnings():  # the stillness warning comes once, from the final calibration
             warnings.simplefilter("ignore")
-            rec, estimates = detect_and_correct(rec, calib_seconds, calib_start)
-    calib = twist_mountings(calibrate(rec, calib_seconds, calib_start), estimates)
+            rec, estimates = detect_and_correct(rec, calib_seconds, calib_start, calib_pose)
+    calib = twist_mountings(calibrate(rec, calib_seconds, calib_start, calib_pose), estimates)
     joints = joint_angles(rec, calib)
     return MappingResult(joints, to_baxter(joints.q), calib, estimates)

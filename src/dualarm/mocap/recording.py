@@ -8,6 +8,7 @@ Readers and writers for CSV, OpenSim ``.sto`` and MATLAB ``.mat`` live in
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -114,3 +115,39 @@ def validate_recording(rec: Recording) -> None:
             v = np.asarray(v)
             if v.shape != (T, 3):
                 raise InputError(f"{kind} must have shape ({T}, 3), got {v.shape}", source=src, column=f"{s}_{kind}")
+
+
+def resolve_sensor_names(found: Iterable[str], default: Mapping[str, str], sensor_map: Mapping[str, str] | None,
+                   source: str, what: str, require: bool = True) -> dict[str, str]:
+    """Pick the name in the file of each sensor: sensor -> name.
+
+    Entries of ``sensor_map`` (file name -> sensor) win over ``default``; two names of
+    one sensor at the same level are ambiguous. With ``require``, every sensor must
+    be found.
+    """
+    found = list(dict.fromkeys(found))
+    user = dict(sensor_map or {})
+    for name, s in user.items():
+        if s not in SENSORS:
+            raise InputError(f"sensor_map maps {name!r} to {s!r}, not one of {', '.join(SENSORS)}", source=source)
+        if name not in found:
+            raise InputError(f"sensor_map names {what} {name!r}, which is not in the file; "
+                             f"{what}s found: {', '.join(found) or 'none'}", source=source)
+    chosen: dict[str, str] = {}
+    for level in (user, default):
+        picked: dict[str, str] = {}
+        for name in found:
+            s = level.get(name)
+            if s is None or s in chosen:
+                continue
+            if s in picked:
+                raise InputError(f"{what}s {picked[s]!r} and {name!r} both give sensor {s}; "
+                                 "choose one with sensor_map", source=source)
+            picked[s] = name
+        chosen.update(picked)
+    for s in SENSORS if require else ():
+        if s not in chosen:
+            expected = [n for n, t in {**default, **user}.items() if t == s]
+            raise InputError(f"no {what} for sensor {s} (expected {' or '.join(map(repr, expected))}); "
+                             f"{what}s found: {', '.join(found) or 'none'}", source=source)
+    return chosen
