@@ -406,6 +406,18 @@ def test_seeds_beyond_numpys_range_are_refused_where_they_are_given(tmp_path, ca
         assert exit_.value.code == 2 and "--seed: must be in 0.." in capsys.readouterr().err
 
 
+def test_a_seed_range_that_runs_past_the_largest_seed_is_refused(capsys):
+    """constraints analyze --seed S --episodes N uses seeds S..S+N-1: the range, not only S,
+    must stay within 0..2**32-1 (was a numpy traceback after the progress bar started)."""
+    from dualarm.constraints.constraint_set import default_constraints_path
+
+    argv = ["constraints", "analyze", str(default_constraints_path("multi")), "--seed", str(2 ** 32 - 2),
+            "--episodes", "3", "-q"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "4294967294..4294967296" in err and len(err.strip().splitlines()) == 1
+
+
 def test_a_write_that_fails_names_its_file_and_keeps_the_previous_version(tmp_path):
     """Under a file-size limit (as on a full disk) a command's output write fails: one line
     naming the file, exit 2, and the file it would have replaced untouched."""

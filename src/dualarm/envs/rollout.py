@@ -91,8 +91,17 @@ def expert_rollouts(episodes: int, seed: int = 1000, progress: bool = False
     Returns:
         q (N, 14) rad, the joint angles after each step of every episode; subtasks (N, 2),
         each arm's sub-task after that step; the success rate.
+
+    Raises:
+        InputError: a seed of the range lies outside 0..``MAX_SEED``.
     """
     from dualarm.envs import make_core
+    from dualarm.errors import InputError
+    from dualarm.task import MAX_SEED
+
+    if seed < 0 or seed + episodes - 1 > MAX_SEED:
+        raise InputError(f"seeds {seed}..{seed + episodes - 1} ({episodes} episodes from seed {seed}) "
+                         f"leave 0..{MAX_SEED}; choose a smaller --seed or fewer --episodes")
 
     env = make_core()
     policy = make_policy("expert", env)

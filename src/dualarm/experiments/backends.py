@@ -561,6 +561,37 @@ def check_reachable(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
                          "(nothing was written)") from None
 
 
+#: Seconds a Ray cluster gets to accept a test driver before the address is refused.
+PROBE_TIMEOUT_S = 9.0
+
+
+def check_ray_cluster(address: str, timeout_s: float = PROBE_TIMEOUT_S) -> None:
+    """Refuse an address where no Ray cluster accepts a driver within ``timeout_s``: a test
+    connection (``ray.init(address)``) in a child process, which is killed at the timeout,
+    since ``ray.init`` waits minutes on a port where something else answers.
+
+    Raises:
+        InputError: naming --ray-address and Ray's own last line.
+    """
+    import subprocess
+
+    code = ("import sys, ray\n"
+            "ray.init(address=sys.argv[1], logging_level='ERROR', log_to_driver=False)\n"
+            "ray.shutdown()\n")
+    try:
+        done = subprocess.run([sys.executable, "-c", code, address], capture_output=True, text=True,
+                              timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        raise InputError(f"--ray-address {address}: no Ray cluster accepted a connection within "
+                         f"{timeout_s:g} s (something else answers there?); start the cluster "
+                         "(`ray start --head`) or fix the address (nothing was written)") from None
+    if done.returncode != 0:
+        lines = [line.strip() for line in done.stderr.splitlines() if line.strip()]
+        why = next((line for line in reversed(lines) if "Error" in line), lines[-1] if lines else "")
+        raise InputError(f"--ray-address {address}: cannot connect to the Ray cluster ({why[:300]}) "
+                         "(nothing was written)")
+
+
 def make_backend(kind: str, workers: int | None = None, address: str | None = None):
     """A backend by name: "local" (``workers`` default: CPU count) or "ray"."""
     if kind == "local":
@@ -570,5 +601,7 @@ def make_backend(kind: str, workers: int | None = None, address: str | None = No
     if kind == "ray":
         if address:
             check_reachable(address)
+            _import_ray()                 # the missing extra's line before a child's traceback
+            check_ray_cluster(address)
         return RayBackend(address, workers)
     raise InputError(f"--backend must be local or ray, got {kind!r}")
