@@ -104,6 +104,83 @@ def test_a_mutated_training_config_loads_or_is_refused(data, tmp_path):
     survives(lambda: TrainConfig.load(path).task_config())
 
 
+VARIANT = "extends: base.yaml\nepisodes: 30\nalgo: {batch_size: 64}\ntask: {max_episode_steps: 30}\n"
+# Edits the config reader's own paths meet: a base that names itself or a missing file, anchors,
+# aliases and merge keys (refused: an alias bomb expands a few lines into billions of values).
+CONFIG_EDITS = [b"extends: variant.yaml", b"extends: missing.yaml", b"extends: paper", b"extends: ..",
+                b"&a", b"*a", b"<<: *a", b"extends: [base.yaml]", b"extends: {a: 1}"]
+
+
+@st.composite
+def mutated_config(draw, original: bytes) -> bytes:
+    """``original`` with one random edit, or with a line of the reader's own edits inserted."""
+    if draw(st.booleans()):
+        return draw(mutated(original))
+    lines = original.split(b"\n")
+    lines.insert(draw(st.integers(0, len(lines))), draw(st.sampled_from(CONFIG_EDITS)))
+    return b"\n".join(lines)
+
+
+@SETTINGS
+@given(data=st.data())
+def test_a_mutated_extends_chain_loads_or_is_refused(data, tmp_path):
+    """A variant file and the base it extends, either one mutated (the extends line included)."""
+    base, variant = tmp_path / "base.yaml", tmp_path / "variant.yaml"
+    texts = {base: CONFIG.encode(), variant: VARIANT.encode()}
+    target = data.draw(st.sampled_from([base, variant]))
+    texts[target] = data.draw(mutated_config(texts[target]))
+    for path, text in texts.items():
+        path.write_bytes(text)
+    survives(lambda: TrainConfig.load(variant).task_config())
+
+
+def trajectory_csv() -> bytes:
+    """A valid 2-s trajectory of 11 points in our CSV layout (joints within Baxter's limits)."""
+    import numpy as np
+
+    from dualarm.export.trajectory import JointTrajectory, trajectory_csv_text
+
+    t = np.linspace(0.0, 2.0, 11)
+    q = np.outer(np.sin(np.pi * t / 2.0), np.full(14, 0.3)) + np.r_[[0.0] * 3, [0.5], [0.0] * 6, [0.5], [0.0] * 3]
+    g = np.stack([t > 1.0, t > 1.2], axis=1).astype(float)
+    return trajectory_csv_text(JointTrajectory(t, q, g)).encode()
+
+
+@SETTINGS
+@given(data=st.data())
+def test_a_mutated_trajectory_exports_or_is_refused(data, tmp_path):
+    path = tmp_path / "traj.csv"
+    path.write_bytes(data.draw(mutated(trajectory_csv())))
+    out = tmp_path / "baxter.csv"
+    out.unlink(missing_ok=True)
+    code = main(["export", str(path), "--format", "baxter", "-o", str(out)])
+    assert code in (0, 2)
+    if code == 2:
+        assert not out.exists()
+
+
+def suit_files(tmp_path) -> dict[str, bytes]:
+    """A valid short BVH and MVNX recording (the writers of tests/test_suits.py)."""
+    from test_suits import joint_path, write_bvh, write_mvnx
+
+    t, q = joint_path("tpose", seconds=1.5, hold=1.0)
+    write_bvh(tmp_path / "orig.bvh", t, q)
+    write_mvnx(tmp_path / "orig.mvnx", t, q)
+    return {ext: (tmp_path / f"orig{ext}").read_bytes() for ext in (".bvh", ".mvnx")}
+
+
+@SETTINGS
+@given(data=st.data())
+def test_a_mutated_suit_recording_reads_or_is_refused(data, tmp_path):
+    from dualarm.mocap.io import read_recording
+
+    originals = suit_files(tmp_path)
+    ext = data.draw(st.sampled_from(sorted(originals)))
+    path = tmp_path / f"rec{ext}"
+    path.write_bytes(data.draw(mutated(originals[ext])))
+    survives(lambda: read_recording(path))
+
+
 @pytest.mark.parametrize("name", ["rec.csv"])
 def test_the_unmutated_files_are_valid(name, tmp_path):
     """The originals themselves load (so that the properties above test the mutations)."""
@@ -114,3 +191,13 @@ def test_the_unmutated_files_are_valid(name, tmp_path):
     assert len(read_labels(DEMOS / "labels.csv")) == 10
     shutil.copy(default_constraints_path("multi"), tmp_path / "m.yaml")
     assert ConstraintSet.load(tmp_path / "m.yaml").name == "multi"
+    (tmp_path / "base.yaml").write_text(CONFIG)
+    (tmp_path / "variant.yaml").write_text(VARIANT)
+    assert TrainConfig.load(tmp_path / "variant.yaml").task_config().max_episode_steps == 30
+    (tmp_path / "traj.csv").write_bytes(trajectory_csv())
+    assert main(["export", str(tmp_path / "traj.csv"), "--format", "baxter", "-o", str(tmp_path / "b.csv")]) == 0
+    from dualarm.mocap.io import read_recording
+
+    for ext, text in suit_files(tmp_path).items():
+        (tmp_path / f"s{ext}").write_bytes(text)
+        assert read_recording(tmp_path / f"s{ext}").n_samples == 90
