@@ -145,8 +145,17 @@ def test_demos_options_are_checked_and_the_command_turns_them_on(tmp_path):
     buffer = record_recording_replays(moved, None, log=lines.append)
     assert buffer.data["done"][:len(buffer)].sum() == 10 + 3          # own scenes + moved
     assert lines == ["demos: 3 of 3 recordings moved to new placements succeed"]
-    with pytest.raises(InputError, match="cartesian control only"):
-        TrainConfig().with_(demos=str(DEFAULT_DEMO_DIR), algo=algo, task={"control": "joint"})
+    # Joint control: each cartesian replay is done again in joint space (in_joint_control);
+    # the shipped recordings give 8 of 10 there, and the other two are named.
+    joint = TrainConfig().with_(condition="none", demos=str(DEFAULT_DEMO_DIR), demo_episodes=3,
+                                task={"control": "joint"})
+    lines = []
+    buffer = record_recording_replays(joint, None, log=lines.append)
+    assert buffer.data["act"].shape[-1] == 8                           # 7 joint deltas and the grip
+    left_out = [line for line in lines if "left out" in line]
+    assert len(left_out) == 2 and all("in joint control" in line for line in left_out)
+    moved = int(lines[0].split()[1])
+    assert buffer.data["done"][:len(buffer)].sum() == 8 + moved
     (tmp_path / "tiny.yaml").write_text("extends: paper\nnum_envs: 2\neval_every: 0\n"
                                         "algo: {hidden: [16, 16], batch_size: 16, warmup_steps: 20}\n")
     out = tmp_path / "run"

@@ -21,7 +21,7 @@ environment's reset), so the demonstrations cover the distribution the learner i
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -45,12 +45,14 @@ class Augmented:
         attempts: placements tried.
         sources: (attempts,) the recording each attempt moved.
         successes: (attempts,) bool, which attempts succeeded.
+        placements: the placement of each successful replay (as ``replays``).
     """
 
     replays: list[Replay]
     attempts: int
     sources: list[str]
     successes: np.ndarray
+    placements: list[Scene] = field(default_factory=list)
 
     @property
     def yield_(self) -> float:
@@ -120,6 +122,7 @@ def augment(env, demos: list[DemoJoints], labels: dict[str, DemoLabels],
     replays: list[Replay] = []
     sources: list[str] = []
     successes: list[bool] = []
+    placements: list[Scene] = []
     for j in range(MAX_ATTEMPTS_PER_EPISODE * episodes):
         if len(replays) >= episodes:
             break
@@ -132,6 +135,7 @@ def augment(env, demos: list[DemoJoints], labels: dict[str, DemoLabels],
         successes.append(r.success)
         if r.success:
             replays.append(r)
+            placements.append(placement)
         if on_attempt is not None:
             on_attempt(len(successes), len(replays))
-    return Augmented(replays, len(successes), sources, np.asarray(successes, dtype=bool))
+    return Augmented(replays, len(successes), sources, np.asarray(successes, dtype=bool), placements)

@@ -170,7 +170,8 @@ class TrainConfig:
             scripted expert; with ``demos``, the recordings moved to the task's random
             placements (``dualarm.sim_demos.augment``, MimicGen), beside the recordings at their
             own scenes (0 there means ``DEMOS_EPISODES``). 0 for none, as in the paper's three
-            conditions. Baxter task, cartesian control only.
+            conditions. The scripted expert demonstrates cartesian control only; the
+            recordings serve either control.
         demos: a demonstration folder (recordings with gripper events, labels.csv and
             scene.csv) whose recordings, replayed at their own scenes in the run's task
             (``dualarm.sim_demos.replay``), fill the demonstration buffer that
@@ -251,9 +252,6 @@ class TrainConfig:
             raise InputError("algo.demo_batch_size > 0 draws from demonstrations: set demos (a "
                              "demonstration folder) or demo_episodes")
         if self.demos is not None:
-            if task.control != "cartesian":
-                raise InputError("demos: recordings are replayed in cartesian control only, not "
-                                 "task.control 'joint'")
             from dualarm.sim_demos.replay import DEFAULT_STEPS
             if task.max_episode_steps < DEFAULT_STEPS:
                 raise InputError(f"demos: a recording is retimed to {DEFAULT_STEPS} steps, longer "
@@ -264,7 +262,7 @@ class TrainConfig:
                              f"{self.demo_following!r}")
         if self.shuffle_demos and self.demos is None:
             raise InputError("shuffle_demos is a control for demos: give demos too")
-        if self.demo_episodes and task.control != "cartesian":
+        if self.demo_episodes and self.demos is None and task.control != "cartesian":
             raise InputError("demo_episodes: the scripted expert demonstrates cartesian control "
                              "only, not task.control 'joint'")
         from dualarm.envs.baxter import check_start_probs

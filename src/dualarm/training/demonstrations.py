@@ -54,7 +54,8 @@ def record_expert_demonstrations(config: TrainConfig, vec: VectorEnv) -> ReplayB
 
 def record_recording_replays(config: TrainConfig, constraints, log=None) -> ReplayBuffer:
     """Replay the recordings of ``config.demos`` at their own scenes in the run's task
-    (condition, constraints and observation as training's; ``dualarm.sim_demos.replay``), and
+    (condition, constraints and observation as training's; ``dualarm.sim_demos.replay``; in a
+    joint-control task each cartesian replay is done again in joint space, ``in_joint_control``), and
     with ``config.demo_episodes`` moved to that many of the task's random placements
     (``dualarm.sim_demos.augment``, placements seeded from ``DEMO_SEED_BASE`` + the run's
     seed), and return the transitions of those that succeed (their actions permuted within each
@@ -70,11 +71,17 @@ def record_recording_replays(config: TrainConfig, constraints, log=None) -> Repl
     from dualarm.envs.baxter import BaxterReachGraspAlign
     from dualarm.errors import InputError
     from dualarm.sim_demos.augment import augment
-    from dualarm.sim_demos.replay import load_replay_folder, replay_demonstration
+    from dualarm.sim_demos.replay import in_joint_control, load_replay_folder, replay_demonstration
 
     task = config.task_config()
     demos, labels, scenes = load_replay_folder(config.demos, task.workspace())
-    env = BaxterReachGraspAlign(task, constraints)
+    env = BaxterReachGraspAlign(task.with_(control="cartesian"), constraints)
+    # Joint control: each cartesian replay is done again in the learner's joint space.
+    joint_env = BaxterReachGraspAlign(task, constraints) if task.control == "joint" else None
+
+    def in_task(r, scene):
+        return r if joint_env is None else in_joint_control(joint_env, r, scene)
+
     try:
         replays, usable, left_out = [], [], []
         for d in demos:
@@ -83,20 +90,28 @@ def record_recording_replays(config: TrainConfig, constraints, log=None) -> Repl
                 continue
             r = replay_demonstration(env, d, labels[d.name], scenes[d.name],
                                      following=config.demo_following)
+            if r.success:
+                usable.append(d)
+                r = in_task(r, scenes[d.name])
             if not r.success:
-                left_out.append(f"{d.source}: its replay at its scene does not succeed ({r.why})")
+                left_out.append(f"{d.source}: its replay at its scene does not succeed in "
+                                f"{task.control} control ({r.why})")
                 continue
             replays.append(r)
-            usable.append(d)
         if usable and config.demo_episodes:
             moved = augment(env, usable, labels, scenes, config.demo_episodes,
                             DEMO_SEED_BASE + config.seed, following=config.demo_following)
-            replays += moved.replays
+            kept = [m for m in (in_task(r, p) for r, p in zip(moved.replays, moved.placements))
+                    if m.success]
+            replays += kept
             if log is not None:
-                log(f"demos: {len(moved.replays)} of {moved.attempts} recordings moved to new "
-                    f"placements succeed")
+                log(f"demos: {len(kept)} of {moved.attempts} recordings moved to new placements "
+                    f"succeed" + (" (in cartesian control, then in joint control)"
+                                  if joint_env is not None else ""))
     finally:
         env.close()
+        if joint_env is not None:
+            joint_env.close()
     for line in left_out:
         if log is not None:
             log(f"demos: left out {line}")
@@ -108,7 +123,8 @@ def record_recording_replays(config: TrainConfig, constraints, log=None) -> Repl
         raise InputError(f"none of the {len(demos)} recordings replays to success at its scene "
                          "(`dualarm demos replay` shows where each stops)", source=str(config.demos))
     rows = sum(len(e["done"]) for e in kept)
-    buffer = ReplayBuffer(rows, 2, env.obs_size, env.action_size)
+    learner_env = joint_env if joint_env is not None else env
+    buffer = ReplayBuffer(rows, 2, learner_env.obs_size, learner_env.action_size)
     for e in kept:
         buffer.add(e["obs"], e["act"], e["rew"], e["next_obs"], e["done"])
     return buffer
