@@ -61,6 +61,15 @@ def survives(call) -> None:
         assert "\n" not in str(exc).strip(), str(exc)
 
 
+def runs_or_refuses(argv: list[str], out) -> None:
+    """The command succeeds (0) or refuses its input (2) and then leaves no partial ``out``."""
+    out.unlink(missing_ok=True)            # tmp_path is shared by the examples
+    code = main(argv)
+    assert code in (0, 2)
+    if code == 2:
+        assert not out.exists()
+
+
 def short_recording() -> bytes:
     """The first 3 s of a shipped demonstration (IMU quaternions at 100 Hz, 6 sensors)."""
     lines = gzip.decompress((DEMOS / "demo_00.csv.gz").read_bytes()).split(b"\n")
@@ -73,11 +82,7 @@ def test_a_mutated_recording_maps_or_is_refused(data, tmp_path):
     path = tmp_path / "rec.csv"
     path.write_bytes(data.draw(mutated(short_recording())))
     out = tmp_path / "joints.csv"
-    out.unlink(missing_ok=True)            # tmp_path is shared by the examples
-    code = main(["mocap", "joints", str(path), "-o", str(out), "-q"])
-    assert code in (0, 2)
-    if code == 2:
-        assert not out.exists()          # no partial output
+    runs_or_refuses(["mocap", "joints", str(path), "-o", str(out), "-q"], out)
 
 
 @SETTINGS
@@ -152,11 +157,7 @@ def test_a_mutated_trajectory_exports_or_is_refused(data, tmp_path):
     path = tmp_path / "traj.csv"
     path.write_bytes(data.draw(mutated(trajectory_csv())))
     out = tmp_path / "baxter.csv"
-    out.unlink(missing_ok=True)
-    code = main(["export", str(path), "--format", "baxter", "-o", str(out)])
-    assert code in (0, 2)
-    if code == 2:
-        assert not out.exists()
+    runs_or_refuses(["export", str(path), "--format", "baxter", "-o", str(out)], out)
 
 
 def suit_files(tmp_path) -> dict[str, bytes]:

@@ -40,3 +40,15 @@ class InputError(DualarmError, ValueError):
 class WriteError(DualarmError, OSError):
     """A file could not be written (a full disk, a file-size limit, a read-only folder); the
     message names the file, and its previous version, if any, is kept."""
+
+
+def require_file(path, what: str = "file") -> None:
+    """Refuse a ``path`` that does not exist or is a directory, naming it (``what``: the kind
+    of file, for the message, e.g. "labels file")."""
+    from pathlib import Path
+
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{what} not found", source=str(path))
+    if p.is_dir():
+        raise InputError(f"is a directory, not a {what}", source=str(path))

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dualarm.errors import InputError
+from dualarm.errors import InputError, require_file
 from dualarm.task import ARMS, SUBTASKS
 
 #: Columns of a labels file; ``arm`` may be left out.
@@ -120,11 +120,8 @@ def read_labels(path: str | os.PathLike) -> dict[str, DemoLabels]:
             missing, sub-tasks out of order or overlapping; naming the file, row and column.
     """
     source = str(path)
+    require_file(path, "labels file")
     p = Path(path)
-    if not p.exists():
-        raise InputError("labels file not found", source=source)
-    if p.is_dir():
-        raise InputError("is a directory, not a labels file", source=source)
     try:
         text = p.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as e:

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from dualarm.errors import InputError
+from dualarm.errors import InputError, require_file
 from dualarm.mocap.recording import SENSORS, Recording
 from dualarm.mocap.segments import check_rotations, match_segments, segment_recording, trunk_to_body
 
@@ -85,11 +85,8 @@ def read_bvh(path: str | os.PathLike, *, sensor_map: Mapping[str, str] | None = 
 
 
 def _read(path: str | os.PathLike) -> str:
+    require_file(path)
     p = Path(path)
-    if not p.exists():
-        raise InputError("file not found", source=str(path))
-    if p.is_dir():
-        raise InputError("is a directory, not a file", source=str(path))
     try:
         return p.read_text(encoding="utf-8")
     except UnicodeDecodeError as e:

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from dualarm.atomic import atomic_open
-from dualarm.errors import InputError
+from dualarm.errors import InputError, require_file
 from dualarm.mocap.recording import ARMS, SEGMENTS, SENSORS, Recording, resolve_sensor_names, sensor_name
 
 #: Accepted file name endings, matched case-insensitively.
@@ -216,7 +216,7 @@ def read_mat(path: str | os.PathLike, *, sensor_map: Mapping[str, str] | None = 
     from scipy.io import loadmat
 
     source = str(path)
-    _require_file(path)
+    require_file(path)
     try:
         m = loadmat(path, squeeze_me=True, struct_as_record=False)
     except NotImplementedError:  # scipy's answer to HDF5-based v7.3 files
@@ -308,17 +308,9 @@ def write_sto(rec: Recording, path: str | os.PathLike) -> None:
 # --------------------------------------------------------------------------- helpers
 
 
-def _require_file(path: str | os.PathLike) -> None:
-    p = Path(path)
-    if not p.exists():
-        raise InputError("file not found", source=str(path))
-    if p.is_dir():
-        raise InputError("is a directory, not a file", source=str(path))
-
-
 def _read_text(path: str | os.PathLike) -> str:
     """The whole file as text; gunzipped when its name ends in ``.gz``."""
-    _require_file(path)
+    require_file(path)
     opener = gzip.open if str(path).lower().endswith(".gz") else open
     try:
         # utf-8-sig drops a byte-order mark (spreadsheet exports) that would rename 'time';

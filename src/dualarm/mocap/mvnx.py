@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from dualarm.errors import InputError
+from dualarm.errors import InputError, require_file
 from dualarm.mocap.recording import SENSORS, Recording
 from dualarm.mocap.segments import check_rotations, match_segments, segment_recording, trunk_to_body
 
@@ -51,11 +51,8 @@ def read_mvnx(path: str | os.PathLike, *, sensor_map: Mapping[str, str] | None =
         InputError: naming the file and, where it applies, the frame (1-based, normal frames).
     """
     source = str(path)
+    require_file(path)
     p = Path(path)
-    if not p.exists():
-        raise InputError("file not found", source=source)
-    if p.is_dir():
-        raise InputError("is a directory, not a file", source=source)
     labels: list[str] = []
     rate = None
     times, quats, positions = [], [], []
