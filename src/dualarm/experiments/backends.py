@@ -563,17 +563,36 @@ def check_reachable(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
 
 #: Seconds a Ray cluster gets to accept a test driver before the address is refused.
 PROBE_TIMEOUT_S = 9.0
+#: Seconds the address gets to complete a gRPC (HTTP/2) handshake, as Ray's GCS and client
+#: server do; a port of anything else (a web server, a database) fails here, fast.
+HANDSHAKE_TIMEOUT_S = 3.0
 
 
 def check_ray_cluster(address: str, timeout_s: float = PROBE_TIMEOUT_S) -> None:
-    """Refuse an address where no Ray cluster accepts a driver within ``timeout_s``: a test
-    connection (``ray.init(address)``) in a child process, which is killed at the timeout,
-    since ``ray.init`` waits minutes on a port where something else answers.
+    """Refuse an address where no Ray cluster accepts a driver: first no gRPC handshake within
+    ``HANDSHAKE_TIMEOUT_S``, then no test connection (``ray.init(address)`` in a child process,
+    killed at ``timeout_s``), since ``ray.init`` waits minutes on a port where something else
+    answers.
 
     Raises:
         InputError: naming --ray-address and Ray's own last line.
     """
     import subprocess
+
+    target = address.removeprefix("ray://")
+    if target != "auto" and ":" in target:
+        import grpc
+
+        channel = grpc.insecure_channel(target)
+        try:
+            grpc.channel_ready_future(channel).result(timeout=HANDSHAKE_TIMEOUT_S)
+        except grpc.FutureTimeoutError:
+            raise InputError(f"--ray-address {address}: something answers there, but not as a Ray "
+                             f"cluster (no gRPC handshake within {HANDSHAKE_TIMEOUT_S:g} s); give the "
+                             "head's GCS port (`ray start --head --port`, 6379 by default) or "
+                             "ray://HOST:10001 (nothing was written)") from None
+        finally:
+            channel.close()
 
     code = ("import sys, ray\n"
             "ray.init(address=sys.argv[1], logging_level='ERROR', log_to_driver=False)\n"
