@@ -279,3 +279,17 @@ def test_env_commands_default_to_trains_condition_with_the_shipped_constraints(c
         assert args.condition == TrainConfig().condition == "multi"
     assert main(["env", "expert", "--episodes", "1"]) == 0
     assert "condition multi" in capsys.readouterr().out
+
+
+def test_ctrl_c_outside_a_commands_own_handler_is_one_line(monkeypatch, capsys, tmp_path):
+    """Ctrl-C while a command sets up (a run loading, a recording mapping) ends with one line
+    and the shell's code for it, not a traceback; nothing is written."""
+    import dualarm.cli.mocap as mocap
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(mocap, "map_file", interrupted)
+    out = tmp_path / "out.csv"
+    assert main(["mocap", "joints", str(EXAMPLE_RECORDING), "-o", str(out)]) == 130
+    assert capsys.readouterr().err.strip() == "dualarm: interrupted" and not out.exists()

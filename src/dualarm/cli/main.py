@@ -46,6 +46,9 @@ def main(argv: list[str] | None = None) -> int:
     except DualarmError as exc:
         print(f"dualarm: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:     # Ctrl-C before a command's own handler (say, while a run loads)
+        print("\ndualarm: interrupted", file=sys.stderr)
+        return 130
     except OSError as exc:
         where = (f"{exc.filename}: " if exc.filename else "")
         hint = "" if exc.filename else " (is the disk full or a file-size limit set?)"
