@@ -1,13 +1,14 @@
 """Read BVH (Biovision hierarchy) motion capture, as Noitom, Rokoko, Vicon, OptiTrack and
 the CMU database export it, as a `Recording` of the six arm segments.
 
-The parsing is bvhio's (a maintained BVH library): the skeleton, the offsets and each
-joint's local rotation per frame from its Euler channels (intrinsic, in channel order, as
-the format specifies). Before bvhio sees a file, :func:`_check_layout` checks that the
-file is complete, because bvhio 1.5 waits forever for a line that a truncated file never
-gives, and that every frame holds one number per channel. The world rotation of a joint is
-the product of its ancestors' local rotations; at all-zero channels (the rest pose, usually
-a T-pose) every joint frame is the file's world frame.
+The hierarchy (joints, offsets, channels, frame time) is parsed by bvhio, a maintained BVH
+library. Before bvhio sees a file, :func:`_check_layout` checks that the file is complete,
+because bvhio 1.5 waits forever for a line that a truncated file never gives, and reads
+every frame line into numbers, checked finite; those numbers become each joint's local
+rotation per frame with SciPy (intrinsic Euler angles in channel order, in degrees, as the
+format specifies and bvhio reads them), so no frame is parsed twice. The world rotation of a
+joint is the product of its ancestors' local rotations; at all-zero channels (the rest pose,
+usually a T-pose) every joint frame is the file's world frame.
 
 The trunk is the lowest common ancestor of the two upper arms (the chest); its "up" is the
 rest-pose direction from the root (hips) to it, its "left" from the right to the left
@@ -26,7 +27,7 @@ from scipy.spatial.transform import Rotation
 
 from dualarm.errors import InputError, require_file
 from dualarm.mocap.recording import SENSORS, Recording
-from dualarm.mocap.segments import check_rotations, match_segments, segment_recording, trunk_to_body
+from dualarm.mocap.segments import match_segments, segment_recording, trunk_to_body
 
 
 def read_bvh(path: str | os.PathLike, *, sensor_map: Mapping[str, str] | None = None) -> Recording:
@@ -49,10 +50,9 @@ def read_bvh(path: str | os.PathLike, *, sensor_map: Mapping[str, str] | None = 
         import bvhio
 
     source = str(path)
-    text = _read(path)
-    frames = _check_layout(text, source)
+    values = _check_layout(_read(path), source)
     try:
-        bvh = bvhio.readAsBvh(str(path))
+        bvh = bvhio.readAsBvh(str(path), loadKeyFrames=False)
     except SyntaxError as e:
         line = e.args[1][1] if len(e.args) > 1 and isinstance(e.args[1], tuple) else None
         raise InputError(f"not a valid BVH file: {e.args[0]}", source=source, row=line) from None
@@ -76,11 +76,8 @@ def read_bvh(path: str | os.PathLike, *, sensor_map: Mapping[str, str] | None = 
 
     if not (np.isfinite(bvh.FrameTime) and bvh.FrameTime > 0):
         raise InputError(f"Frame Time must be a positive number of seconds, got {bvh.FrameTime}", source=source)
-    world = _world_rotations(joints, frames, source)
-    time = np.arange(frames) * bvh.FrameTime
-    for s in SENSORS:
-        check_rotations(world[chosen[s]], source, f"joint {chosen[s]}")
-    check_rotations(world[trunk], source, f"joint {trunk}")
+    world = _world_rotations(joints, values, source)
+    time = np.arange(len(values)) * bvh.FrameTime
     return segment_recording(time, world[trunk], {s: world[chosen[s]] for s in SENSORS}, body, source)
 
 
@@ -95,8 +92,9 @@ def _read(path: str | os.PathLike) -> str:
         raise InputError(f"cannot read file ({type(e).__name__}: {e.strerror or e})", source=str(path)) from None
 
 
-def _check_layout(text: str, source: str) -> int:
-    """Check the file is complete before bvhio reads it; return the number of frames.
+def _check_layout(text: str, source: str) -> np.ndarray:
+    """Check the file is complete before bvhio reads it; return its frames' channel values
+    (N, channels), in the order of the file.
 
     A complete file has a HIERARCHY whose braces balance, then MOTION, ``Frames: N``,
     ``Frame Time: dt`` and N lines of one finite number per channel.
@@ -152,7 +150,7 @@ def _check_layout(text: str, source: str) -> int:
     if bad.size:
         row = data[int(bad[0]) // max(channels, 1)][0]
         raise InputError("a channel value is NaN or infinite", source=source, row=row)
-    return frames
+    return numbers.reshape(frames, channels)
 
 
 def _flatten(root) -> list[tuple[object, str | None]]:
@@ -184,14 +182,27 @@ def _common_ancestor(a: str, b: str, parent: Mapping[str, str | None]) -> str:
     return b
 
 
-def _world_rotations(joints, frames: int, source: str) -> dict[str, np.ndarray]:
-    """Joint name -> (T, 3, 3) world rotation, the product of the local rotations above it."""
+def _world_rotations(joints, values: np.ndarray, source: str) -> dict[str, np.ndarray]:
+    """Joint name -> (T, 3, 3) world rotation, the product of the local rotations above it.
+
+    ``values`` (T, channels) holds the joints' channels in the hierarchy's order (depth first,
+    as ``joints``); a joint's rotation channels, e.g. ``Zrotation Xrotation Yrotation``, are
+    intrinsic Euler angles in that order, degrees; a joint without any is not rotated.
+    """
     world: dict[str, np.ndarray] = {}
+    column = 0
     for joint, parent in joints:
-        keys = joint.Keyframes
-        if len(keys) != frames:
-            raise InputError(f"joint {joint.Name}: {len(keys)} frames, Frames: says {frames}", source=source)
-        quat = np.array([(k.Rotation.w, k.Rotation.x, k.Rotation.y, k.Rotation.z) for k in keys])
-        local = Rotation.from_quat(quat, scalar_first=True).as_matrix()
+        channels = [c.lower() for c in joint.Channels]
+        rotation = [(k, c[0].upper()) for k, c in enumerate(channels) if c.endswith("rotation")]
+        if len(rotation) > 3:
+            raise InputError(f"joint {joint.Name}: {len(rotation)} rotation channels, at most 3",
+                             source=source)
+        block = values[:, column:column + len(channels)]
+        column += len(channels)
+        if rotation:
+            order = "".join(axis for _, axis in rotation)
+            local = Rotation.from_euler(order, block[:, [k for k, _ in rotation]], degrees=True).as_matrix()
+        else:
+            local = np.broadcast_to(np.eye(3), (len(values), 3, 3))
         world[joint.Name] = local if parent is None else world[parent] @ local
     return world

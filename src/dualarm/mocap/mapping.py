@@ -51,7 +51,7 @@ def map_recording(rec: Recording, *, calib_seconds: float = DEFAULT_CALIB_SECOND
     if heading not in HEADING_MODES:
         raise InputError(f"heading must be one of {', '.join(HEADING_MODES)}, got {heading!r}")
     calibration_window(rec, calib_seconds, calib_start)  # fail early, before any heavy work
-    calibration_pose_rotation("left", calib_pose)
+    calibration_pose_rotation("left", calib_pose)      # an unknown pose, likewise
     estimates: list[HeadingEstimate] = []
     if heading == "auto":
         with warnings.catch_warnings():  # the stillness warning comes once, from the final calibration

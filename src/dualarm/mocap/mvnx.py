@@ -29,7 +29,7 @@ from scipy.spatial.transform import Rotation
 
 from dualarm.errors import InputError, require_file
 from dualarm.mocap.recording import SENSORS, Recording
-from dualarm.mocap.segments import check_rotations, match_segments, segment_recording, trunk_to_body
+from dualarm.mocap.segments import match_segments, segment_recording, trunk_to_body
 
 #: The segments besides the arms that the reader needs.
 TRUNK, PELVIS = "T8", "Pelvis"
@@ -129,9 +129,7 @@ def _rotations(q: np.ndarray, source: str, label: str) -> np.ndarray:
     if bad.size:
         raise InputError(f"segment {label}: quaternion norm {norm[bad[0]]:.6g} is not 1",
                          source=source, row=int(bad[0]) + 1)
-    R = Rotation.from_quat(q, scalar_first=True).as_matrix()
-    check_rotations(R, source, f"segment {label}")
-    return R
+    return Rotation.from_quat(q, scalar_first=True).as_matrix()   # finite: _numbers checked
 
 
 def _body(trunk: np.ndarray, positions: list, index: Mapping[str, int], chosen: Mapping[str, str],

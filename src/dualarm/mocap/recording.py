@@ -118,7 +118,7 @@ def validate_recording(rec: Recording) -> None:
 
 
 def resolve_sensor_names(found: Iterable[str], default: Mapping[str, str], sensor_map: Mapping[str, str] | None,
-                   source: str, what: str, require: bool = True) -> dict[str, str]:
+                         source: str, what: str, require: bool = True) -> dict[str, str]:
     """Pick the name in the file of each sensor: sensor -> name.
 
     Entries of ``sensor_map`` (file name -> sensor) win over ``default``; two names of

@@ -136,10 +136,3 @@ def segment_recording(time: np.ndarray, trunk: np.ndarray, segments: Mapping[str
     lead = body @ np.swapaxes(trunk, -1, -2)
     quat = {s: Rotation.from_matrix(lead @ segments[s]).as_quat(scalar_first=True) for s in SENSORS}
     return Recording(np.asarray(time, dtype=float), quat, source=source)
-
-
-def check_rotations(R: np.ndarray, source: str, what: str) -> None:
-    """Raise InputError naming the first frame (1-based) where ``R`` (T, 3, 3) is not finite."""
-    bad = np.flatnonzero(~np.isfinite(R).all(axis=(1, 2)))
-    if bad.size:
-        raise InputError(f"{what}: rotation is NaN or infinite", source=source, row=int(bad[0]) + 1)
