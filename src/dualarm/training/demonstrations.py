@@ -75,12 +75,12 @@ def record_recording_replays(config: TrainConfig, constraints, log=None) -> Repl
 
     task = config.task_config()
     demos, labels, scenes = load_replay_folder(config.demos, task.workspace())
-    env = BaxterReachGraspAlign(task.with_(control="cartesian"), constraints)
-    # Joint control: each cartesian replay is done again in the learner's joint space.
-    joint_env = BaxterReachGraspAlign(task, constraints) if task.control == "joint" else None
+    env = BaxterReachGraspAlign(task.with_(control="cartesian"), constraints)   # follows hand paths
+    # The learner's task; in joint control each cartesian replay is done again there.
+    learner = env if task.control == "cartesian" else BaxterReachGraspAlign(task, constraints)
 
     def in_task(r, scene):
-        return r if joint_env is None else in_joint_control(joint_env, r, scene)
+        return r if learner is env else in_joint_control(learner, r, scene)
 
     try:
         replays, usable, left_out = [], [], []
@@ -101,17 +101,16 @@ def record_recording_replays(config: TrainConfig, constraints, log=None) -> Repl
         if usable and config.demo_episodes:
             moved = augment(env, usable, labels, scenes, config.demo_episodes,
                             DEMO_SEED_BASE + config.seed, following=config.demo_following)
-            kept = [m for m in (in_task(r, p) for r, p in zip(moved.replays, moved.placements))
-                    if m.success]
-            replays += kept
+            moved_ok = [m for m in (in_task(r, p) for r, p in zip(moved.replays, moved.placements))
+                        if m.success]
+            replays += moved_ok
             if log is not None:
-                log(f"demos: {len(kept)} of {moved.attempts} recordings moved to new placements "
-                    f"succeed" + (" (in cartesian control, then in joint control)"
-                                  if joint_env is not None else ""))
+                log(f"demos: {len(moved_ok)} of {moved.attempts} recordings moved to new placements "
+                    f"succeed" + ("" if learner is env else " (in cartesian control, then in joint control)"))
     finally:
         env.close()
-        if joint_env is not None:
-            joint_env.close()
+        if learner is not env:
+            learner.close()
     for line in left_out:
         if log is not None:
             log(f"demos: left out {line}")
@@ -123,8 +122,7 @@ def record_recording_replays(config: TrainConfig, constraints, log=None) -> Repl
         raise InputError(f"none of the {len(demos)} recordings replays to success at its scene "
                          "(`dualarm demos replay` shows where each stops)", source=str(config.demos))
     rows = sum(len(e["done"]) for e in kept)
-    learner_env = joint_env if joint_env is not None else env
-    buffer = ReplayBuffer(rows, 2, learner_env.obs_size, learner_env.action_size)
+    buffer = ReplayBuffer(rows, 2, learner.obs_size, learner.action_size)
     for e in kept:
         buffer.add(e["obs"], e["act"], e["rew"], e["next_obs"], e["done"])
     return buffer
