@@ -27,7 +27,7 @@ def main() -> None:
     parser.add_argument("--moved", type=int, default=64,
                         help="moved episodes per repeat (train --demos makes 256)")
     parser.add_argument("--following", choices=FOLLOWING, default="time",
-                        help="how the hand paths are followed (TrainConfig.demo_following)")
+                        help="how the hand paths are followed (TrainConfig.demos.following)")
     args = parser.parse_args()
     env = make_core()
     loads, replays, moves, steps, wins = [], [], [], 0, 0

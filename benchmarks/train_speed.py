@@ -42,7 +42,7 @@ def main() -> None:
     config = TrainConfig.load(args.config) if args.config else TrainConfig()
     config = config.with_(torch_threads=args.threads, checkpoint_minutes=1e6)
     if args.no_eval:
-        config = config.with_(eval_every=0, curriculum_probe=0)
+        config = config.with_(eval_every=0, starts={"probe": 0})
     every = config.eval_every
     episodes = args.episodes or (2 * every if every else 160)
     warmup = args.warmup or (every if every else 64)
@@ -56,7 +56,7 @@ def main() -> None:
           f"{platform.processor() or platform.machine()}; condition {config.condition}, "
           f"{config.num_envs} copies, hidden {config.algo.hidden}, batch {config.algo.batch_size}, "
           f"{config.algo.updates_per_step} updates/step; evaluation every {config.eval_every} "
-          f"episodes ({config.eval_episodes} episodes, {config.curriculum_probe} probes per later start)")
+          f"episodes ({config.eval_episodes} episodes, {config.starts.probe} probes per later start)")
     with tempfile.TemporaryDirectory() as tmp:
         trainer = Trainer.start(config, Path(tmp) / "run", progress=False)
         trainer.run()                                   # warm-up: replay fills, updates start

@@ -212,8 +212,8 @@ def test_train_without_a_config_uses_the_recipe(tmp_path, capsys):
                  "--out", str(out)]) == 0
     saved = TrainConfig.load(out / "config.yaml")
     assert saved == TrainConfig.recipe().with_(condition="none", episodes=4, num_envs=4)
-    assert saved.her_share == 0.8 and saved.algo.twin_critics and saved.approach_shaping == 1.0
-    assert saved.carry_shaping == 1.0 and saved.algo.twin_min_weight == 0.5
+    assert saved.replay.her_share == 0.8 and saved.algo.twin_critics and saved.shaping.approach == 1.0
+    assert saved.shaping.carry == 1.0 and saved.algo.twin_min_weight == 0.5
     assert saved.algo.eval_actor == "average" and saved.algo.policy_average > 0
     assert saved.task_config().observes_joint_angles          # none observes them too
     assert TrainConfig.paper().with_(condition="none").task_config().observes_joint_angles is False
@@ -226,7 +226,7 @@ def test_shipped_expert_demos_config_trains(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["train", "--config", str(shipped), "--episodes", "16", "--out", str(out)]) == 0
     saved = yaml.safe_load((out / "config.yaml").read_text())
-    assert saved["condition"] == "multi" and saved["demo_episodes"] == 256
+    assert saved["condition"] == "multi" and saved["demos"]["episodes"] == 256
     assert saved["task"]["reach_funnel"] == 1.0
     assert saved["algo"]["twin_critics"] and saved["algo"]["reward_scale"] == 0.0025
     with open(out / "metrics.csv", newline="") as f:
@@ -245,20 +245,21 @@ def test_every_shipped_config_is_a_valid_train_config(name):
 
 
 def test_a_config_that_extends_the_recipe_changes_only_what_it_names(tmp_path):
-    """``extends: recipe`` starts from the shipped recipe; ``algo`` and ``task`` merge key by
-    key, other fields replace the base's."""
+    """``extends: recipe`` starts from the shipped recipe; the groups, ``algo`` and ``task``
+    merge key by key, other fields replace the base's."""
     from dualarm.training.config import TrainConfig
 
     variant = tmp_path / "variant.yaml"
-    variant.write_text("extends: recipe\nstart_curriculum: 0.3\nalgo:\n  batch_size: 64\n"
+    variant.write_text("extends: recipe\nstarts: {curriculum: 0.3}\nalgo:\n  batch_size: 64\n"
                        "task:\n  max_episode_steps: 80\n")
     recipe, config = TrainConfig.recipe(), TrainConfig.load(variant)
-    assert config.start_curriculum == 0.3 and recipe.start_curriculum != 0.3
+    assert config.starts.curriculum == 0.3 and recipe.starts.curriculum != 0.3
+    assert config.starts.probs == recipe.starts.probs
     assert config.algo.batch_size == 64 and config.task["max_episode_steps"] == 80
     assert config.algo.twin_critics and config.algo.hidden == recipe.algo.hidden
     assert config.task["joint_angles_in_obs"] is True           # kept from the recipe's task
     changed = {k for k, v in config.to_dict().items() if recipe.to_dict()[k] != v}
-    assert changed == {"start_curriculum", "algo", "task"}
+    assert changed == {"starts", "algo", "task"}
 
 
 def test_a_file_layers_on_the_recipe_unless_it_extends_the_paper(tmp_path):
@@ -276,25 +277,73 @@ def test_a_file_layers_on_the_recipe_unless_it_extends_the_paper(tmp_path):
     paper.write_text("extends: paper\nalgo: {batch_size: 64}\n")
     assert TrainConfig.load(paper) == TrainConfig.paper().with_(algo=TrainConfig.paper().algo.with_(batch_size=64))
     assert TrainConfig.load("paper") == TrainConfig.paper() != TrainConfig()
-    assert not TrainConfig.paper().algo.twin_critics and TrainConfig.paper().her_share == 0
+    assert not TrainConfig.paper().algo.twin_critics and TrainConfig.paper().replay.her_share == 0
     for preset in (TrainConfig(), TrainConfig.paper()):           # what a run writes reads back
         assert TrainConfig.from_dict(preset.to_dict()) == preset
         assert TrainConfig.from_dict(preset.to_dict(), base=TrainConfig.paper()) == preset
 
 
 def test_a_run_config_written_before_the_recipe_was_the_default_reads_as_it_ran(tmp_path):
-    """A run's config.yaml that lacks the fields added since (written when the defaults were
-    the paper's) takes the paper's values for them, the values that run used."""
+    """A run's config.yaml of the flat layout (before the groups) that lacks the fields added
+    since (written when the defaults were the paper's) takes the paper's values for them, the
+    values that run used."""
     from dualarm.training.config import TrainConfig
+    from dualarm.training.config_groups import FLAT_FIELDS
 
-    old = {k: v for k, v in TrainConfig.paper().with_(condition="none").to_dict().items()
-           if k not in ("mirror_episodes", "recombine_share", "task")}
+    grouped = TrainConfig.paper().with_(condition="none").to_dict()
+    old = {k: v for k, v in grouped.items() if k not in ("starts", "replay", "shaping",
+                                                         "near_box", "demos", "task")}
+    old.update({flat: grouped[group][name] for flat, (group, name) in FLAT_FIELDS.items()
+                if flat not in ("mirror_episodes", "recombine_share")})
+    old["demos"] = None
     old["algo"] = {k: v for k, v in old["algo"].items() if k not in ("policy_average", "eval_actor")}
     path = tmp_path / "config.yaml"
     path.write_text(yaml.safe_dump(old))
     saved = TrainConfig.load_saved(path)
     assert saved == TrainConfig.paper().with_(condition="none")
     assert not saved.task_config().observes_joint_angles
+
+
+def test_flat_layout_files_load_into_the_groups(tmp_path):
+    """Files of the flat layout (every run directory made before the groups, and the run logs
+    under docs/) still load, or name the removed option a screen turned on: each old name lands in its group, ``demos: DIR`` is the folder, a
+    flat base and a grouped variant merge key by key, and a group given both ways is refused
+    naming both spellings."""
+    from dualarm.errors import InputError
+    from dualarm.training.config import TrainConfig
+
+    root = Path(__file__).resolve().parents[1]
+    saved = sorted(root.glob("docs/*/runs/*/config.yaml"))
+    assert saved, "no run logs under docs/"
+    flat = [p for p in saved if "start_probs" in p.read_text()]
+    assert flat, "no flat-layout run log under docs/"
+    loaded = 0
+    for path in flat:
+        try:
+            config = TrainConfig.load_saved(path)
+        except InputError as exc:      # a screen of an option that has since left the code
+            assert "is no longer an option" in str(exc), exc
+            continue
+        loaded += 1
+        old = yaml.safe_load(path.read_text())
+        assert config.starts.probs == tuple(old["start_probs"]), path
+        assert config.replay.her_share == old["her_share"], path
+        assert config.seed == old["seed"] and config.episodes == old["episodes"], path
+        if old.get("demos"):
+            assert Path(config.demos.folder) == (path.parent / old["demos"]), path
+    assert loaded > len(flat) / 2
+    base = tmp_path / "base.yaml"
+    base.write_text("start_probs: [0.5, 0.25, 0.25]\nher_share: 0.5\ndemo_episodes: 7\n")
+    variant = tmp_path / "variant.yaml"
+    variant.write_text("extends: base.yaml\nstarts: {curriculum: 0.25}\ndemos: rec\n")
+    config = TrainConfig.load(variant)
+    assert config.starts == TrainConfig().starts.with_(probs=(0.5, 0.25, 0.25), curriculum=0.25)
+    assert config.replay.her_share == 0.5 and config.demos.episodes == 7
+    assert config.demos.folder == str(tmp_path / "rec")
+    both = tmp_path / "both.yaml"
+    both.write_text("her_share: 0.5\nreplay: {her_share: 0.4}\n")
+    with pytest.raises(InputError, match="replay.her_share or its old name her_share"):
+        TrainConfig.load(both)
 
 
 def test_removed_options_load_at_their_off_value_and_are_refused_at_any_other(tmp_path):
@@ -417,3 +466,18 @@ def test_train_writes_where_o_output_or_out_says(tmp_path):
     for flag in ("-o", "--output", "--out"):
         args = parser.parse_args(["train", flag, str(tmp_path / "r")])
         assert str(args.out) == str(tmp_path / "r")
+
+
+def test_the_recipe_block_in_the_docs_is_the_recipe(tmp_path):
+    """docs/training.md lists the recipe value by value on the paper's base, each with its
+    reason: that block, loaded as a config file, is ``TrainConfig()``, and it stays short."""
+    from dualarm.training.config import TrainConfig
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "training.md").read_text()
+    block = text.split("<!-- recipe -->\n```yaml\n", 1)[1].split("```", 1)[0]
+    (tmp_path / "recipe.yaml").write_text(block)
+    assert TrainConfig.load(tmp_path / "recipe.yaml") == TrainConfig()
+    values = [line for line in block.splitlines() if ":" in line and not line.rstrip().endswith(":")
+              and not line.startswith("extends")]
+    assert len(values) <= 30
+    assert all("#" in line for line in values), "a recipe value without its reason"

@@ -241,15 +241,15 @@ def test_the_demos_condition_runs_the_recordings_on_the_multi_constraints(tmp_pa
         prepare(tmp_path / "bad", CompareRequest(conditions=("none",), base=base, demos_dir=no_scene))
     assert not (tmp_path / "bad").exists()
     with pytest.raises(InputError, match="--demos DIR"):
-        prepare(tmp_path / "bad", CompareRequest(base=base.with_(demos=str(DEFAULT_DEMO_DIR))))
+        prepare(tmp_path / "bad", CompareRequest(base=base.with_(demos={"folder": str(DEFAULT_DEMO_DIR)})))
     comparison = prepare(tmp_path / "cmp", CompareRequest(conditions=("none",), seeds=(0,), episodes=2,
                                                           base=base, constraints_dir=cons,
                                                           demos_dir=DEFAULT_DEMO_DIR))
     assert comparison.conditions == ("none", "demos")
     run = comparison.run_config("demos", 0)
-    assert (run.condition, run.compared_condition, run.demos) == ("multi", "demos", str(DEFAULT_DEMO_DIR))
+    assert (run.condition, run.compared_condition, run.demos.folder) == ("multi", "demos", str(DEFAULT_DEMO_DIR))
     assert run.constraints == str(tmp_path / "cmp" / "constraints" / "multi.yaml")
-    assert comparison.run_config("none", 0).demos is None
+    assert comparison.run_config("none", 0).demos.folder is None
     assert load_manifest(tmp_path / "cmp").demos_dir == DEFAULT_DEMO_DIR
     with pytest.raises(InputError, match="demos_dir"):
         prepare(tmp_path / "cmp", CompareRequest(demos_dir=no_scene))

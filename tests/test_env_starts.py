@@ -7,16 +7,17 @@ import dualarm  # noqa: F401  (headless GL before mujoco loads)
 import numpy as np
 import pytest
 
-from dualarm.envs.baxter import BaxterBatch, check_start_probs
+from dualarm.envs.baxter import BaxterBatch
 from dualarm.envs.config import TaskConfig
 from dualarm.envs.expert import ScriptedExpert
+from dualarm.envs.starts import StartDistribution
 from dualarm.training.config import TrainConfig
 from dualarm.training.vector import make_vector_env
 
 
 @pytest.mark.parametrize("control", ["cartesian", "joint"])
 def test_held_start_grasps_the_box_and_keeps_it(control):
-    env = BaxterBatch(TaskConfig(control=control), num_envs=1, start_probs=(0.0, 0.0, 1.0))
+    env = BaxterBatch(TaskConfig(control=control), num_envs=1, starts=StartDistribution((0.0, 0.0, 1.0)))
     grip = np.zeros((1, 2, env.action_size))
     grip[..., -1] = 1.0                              # keep the fingers closed, do not move
     for seed in range(8):
@@ -32,7 +33,7 @@ def test_held_start_grasps_the_box_and_keeps_it(control):
 
 
 def test_held_boxes_lie_between_their_start_and_target_and_above_the_table():
-    env = BaxterBatch(TaskConfig(), num_envs=1, start_probs=(0.0, 0.0, 1.0))
+    env = BaxterBatch(TaskConfig(), num_envs=1, starts=StartDistribution((0.0, 0.0, 1.0)))
     plain = BaxterBatch(TaskConfig(), num_envs=1)
     lifted = env.box_rest_z + env.config.lift_height
     for seed in range(10):
@@ -51,7 +52,7 @@ def test_held_boxes_lie_between_their_start_and_target_and_above_the_table():
 
 
 def test_grasp_start_puts_the_open_gripper_at_the_resting_box():
-    env = BaxterBatch(TaskConfig(), num_envs=1, start_probs=(0.0, 1.0, 0.0))
+    env = BaxterBatch(TaskConfig(), num_envs=1, starts=StartDistribution((0.0, 1.0, 0.0)))
     for seed in range(5):
         obs, info = env.reset_env(0, seed)
         assert list(info["subtask"]) == [1, 1] and not info["grasped"].any()
@@ -63,7 +64,7 @@ def test_grasp_start_puts_the_open_gripper_at_the_resting_box():
 def test_scripted_expert_finishes_from_mixed_starts():
     """The later starts are states the task reaches anyway: the expert carries on from them."""
     task = TaskConfig()
-    env = BaxterBatch(task, num_envs=1, start_probs=(0.4, 0.3, 0.3))
+    env = BaxterBatch(task, num_envs=1, starts=StartDistribution((0.4, 0.3, 0.3)))
     expert = ScriptedExpert(task)
     starts, wins = [], 0
     for seed in range(20):
@@ -82,13 +83,13 @@ def test_scripted_expert_finishes_from_mixed_starts():
 @pytest.mark.parametrize("bad", [(0.5, 0.5), (0.5, 0.6, 0.0), (-0.1, 0.6, 0.5), (np.nan, 0.5, 0.5)])
 def test_start_probabilities_are_checked(bad):
     with pytest.raises(ValueError, match="start probabilities"):
-        check_start_probs(bad)
-    with pytest.raises(Exception, match="start_probs"):
-        TrainConfig.from_dict({"start_probs": list(bad)})
+        StartDistribution(bad)
+    with pytest.raises(Exception, match="starts: probs"):
+        TrainConfig.from_dict({"starts": {"probs": list(bad)}})
 
 
 def test_only_training_copies_use_the_start_distribution():
-    config = TrainConfig.paper().with_(condition="none", start_probs=(0.0, 0.0, 1.0))
+    config = TrainConfig.paper().with_(condition="none", starts={"probs": (0.0, 0.0, 1.0)})
     assert TrainConfig.from_dict(config.to_dict()) == config
     train = make_vector_env(config, 1, training=True)
     evaluation = make_vector_env(config, 1)
@@ -97,13 +98,13 @@ def test_only_training_copies_use_the_start_distribution():
 
 
 def test_approach_starts_put_the_open_gripper_between_home_and_above_the_box():
-    """With approach_starts, reach starts spread along the way to the box (evaluation copies
+    """With approach starts, reach starts spread along the way to the box (evaluation copies
     and arms at later sub-tasks are unchanged)."""
     from dualarm.envs.baxter import APPROACH_HEIGHT
 
     task = TaskConfig()
-    home = BaxterBatch(task, num_envs=1, start_probs=(1.0, 0.0, 0.0))
-    spread = BaxterBatch(task, num_envs=1, start_probs=(1.0 - 1e-9, 1e-9, 0.0), approach_starts=True)
+    home = BaxterBatch(task, num_envs=1)
+    spread = BaxterBatch(task, num_envs=1, starts=StartDistribution(approach=True))
     fractions = []
     for seed in range(12):
         o_home = home.reset_env(0, seed)[0]
@@ -120,6 +121,6 @@ def test_approach_starts_put_the_open_gripper_between_home_and_above_the_box():
         from dualarm.envs.rules import closed_gap, finger_gap
         assert (finger_gap(o[:, 9:11]) > closed_gap(task) + 0.01).all()     # fingers open
     assert min(fractions) < 0.3 and max(fractions) > 0.7          # spread along the way
-    with pytest.raises(Exception, match="approach_starts"):
-        TrainConfig.paper().with_(approach_starts=True)
+    with pytest.raises(Exception, match="approach moves the start states"):
+        TrainConfig.paper().with_(starts={"approach": True})
 

@@ -15,10 +15,10 @@ from dualarm.rl.her import HindsightSampler
 from dualarm.rl.replay import ReplayBuffer
 
 
-def expert_episode(seed: int, task: TaskConfig, start_probs=None):
+def expert_episode(seed: int, task: TaskConfig):
     """(obs, act, reward (T, 2), its coordination bonus term (T, 2), next_obs, terminated, env)
     of one expert episode."""
-    env = BaxterBatch(task, num_envs=1, start_probs=start_probs)
+    env = BaxterBatch(task, num_envs=1)
     expert = ScriptedExpert(task)
     obs = env.reset_env(0, seed)[0]
     rows = []

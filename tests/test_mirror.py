@@ -9,6 +9,7 @@ from dualarm.envs.baxter import BaxterBatch
 from dualarm.envs.config import TaskConfig
 from dualarm.envs.expert import ScriptedExpert
 from dualarm.envs.mirror import JOINT_SIGNS, TaskMirror
+from dualarm.envs.starts import StartDistribution
 from dualarm.errors import InputError
 
 FLIP = np.array([1.0, -1.0, 1.0])
@@ -65,7 +66,7 @@ def test_a_mirrored_scene_under_mirrored_actions_follows_the_mirrored_trajectory
     velocities. The expert grasps and carries in one scene; the other is driven by the
     mirrors of its actions and must stay the mirror image, contacts and all."""
     config, constraints = multi
-    source = BaxterBatch(config, constraints, start_probs=starts)
+    source = BaxterBatch(config, constraints, starts=StartDistribution(starts))
     image = BaxterBatch(config, constraints)
     mirror = TaskMirror(config, constraints)
     expert = ScriptedExpert(config)

@@ -18,8 +18,8 @@ from dualarm.errors import DualarmError
 from dualarm.training import TrainConfig
 
 DEMOS = default_constraints_path("multi").parent.parent / "demos"
-CONFIG = ("condition: single\nepisodes: 40\nseed: 3\nnum_envs: 4\nstart_probs: [0.5, 0.25, 0.25]\n"
-          "her_share: 0.5\ntask: {max_episode_steps: 20, guide_c0: [0.01, 0.01, 0.05]}\n"
+CONFIG = ("condition: single\nepisodes: 40\nseed: 3\nnum_envs: 4\nstarts: {probs: [0.5, 0.25, 0.25]}\n"
+          "replay: {her_share: 0.5}\ntask: {max_episode_steps: 20, guide_c0: [0.01, 0.01, 0.05]}\n"
           "algo: {hidden: [64, 64], gamma: 0.98, reward_scale: 0.01, twin_critics: true}\n")
 REPLACEMENTS = [b"", b"x", b"nan", b".nan", b"inf", b"-1", b"0", b"1e400", b"true", b"[1, 2]",
                 b"{a: 1}", b"null", b",", b"\"", b"\xff\xfe", b"\x00", b"   "]
@@ -188,7 +188,7 @@ def test_the_unmutated_files_are_valid(name, tmp_path):
     (tmp_path / name).write_bytes(short_recording())
     assert main(["mocap", "joints", str(tmp_path / name), "-o", str(tmp_path / "j.csv"), "-q"]) == 0
     (tmp_path / "c.yaml").write_text(CONFIG)
-    assert TrainConfig.load(tmp_path / "c.yaml").start_probs == (0.5, 0.25, 0.25)
+    assert TrainConfig.load(tmp_path / "c.yaml").starts.probs == (0.5, 0.25, 0.25)
     assert len(read_labels(DEMOS / "labels.csv")) == 10
     shutil.copy(default_constraints_path("multi"), tmp_path / "m.yaml")
     assert ConstraintSet.load(tmp_path / "m.yaml").name == "multi"

@@ -6,6 +6,7 @@ import pytest
 
 from dualarm.envs.config import TaskConfig
 from dualarm.envs.expert import ScriptedExpert
+from dualarm.envs.starts import StartDistribution
 from dualarm.task import SUBTASKS
 from dualarm.training.outcomes import OUTCOMES, link_outcomes
 from dualarm.training.vector import BaxterVector
@@ -17,8 +18,7 @@ EPISODES = 4
 def outcomes(policy, start="reach", episodes=EPISODES, task=TASK):
     """Report of ``policy`` (obs (2, O), step -> action (2, 4)) from ``start``."""
     k = SUBTASKS.index(start)
-    probs = None if k == 0 else tuple(float(i == k) for i in range(3))
-    vec = BaxterVector(task, None, episodes, probs)
+    vec = BaxterVector(task, None, episodes, StartDistribution(tuple(float(i == k) for i in range(3))))
     steps = {"n": 0}
 
     def act(obs):

@@ -36,7 +36,7 @@ def test_pipeline_extracts_trains_reports_and_resumes(tmp_path, capsys):
     # demos: the shipped recordings on the multi constraints
     demos = TrainConfig.load_saved(out / "runs" / "demos-seed0" / "config.yaml")
     assert (demos.condition, demos.compared_condition) == ("multi", "demos")
-    assert Path(demos.demos) == DEFAULT_DEMO_DIR and demos.demo_episodes > 0
+    assert Path(demos.demos.folder) == DEFAULT_DEMO_DIR and demos.demos.episodes > 0
     html = (out / "report" / "index.html").read_text()
     assert "recordings as demonstrations" in html
     assert "fig6_return.png" in html and (out / "report" / "table.csv").exists()

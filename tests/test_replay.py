@@ -106,7 +106,7 @@ def test_recordings_fill_the_demonstration_buffer_and_failed_replays_are_named(t
     from dualarm.training import TrainConfig
     from dualarm.training.demonstrations import record_recording_replays
 
-    config = TrainConfig().with_(condition="none", demos=str(DEFAULT_DEMO_DIR), demo_episodes=2,
+    config = TrainConfig().with_(condition="none", demos={"folder": str(DEFAULT_DEMO_DIR), "episodes": 2},
                                  algo=TrainConfig().algo.with_(demo_batch_size=8))
     buffer = record_recording_replays(config, None)
     assert 350 < len(buffer) < 550                      # 10 + 2 moved replays of about 36 steps
@@ -136,18 +136,18 @@ def test_demos_options_are_checked_and_the_command_turns_them_on(tmp_path):
     # once silently left only the 10 own-scene replays), and as many as asked where asked
     own_algo = TrainConfig.from_dict({"demos": str(DEFAULT_DEMO_DIR),
                                       "algo": {"demo_batch_size": 64, "bc_weight": 3.0}})
-    assert own_algo.demo_episodes == DEMOS_EPISODES and own_algo.algo.bc_weight == 3.0
-    assert TrainConfig().with_(demos=str(DEFAULT_DEMO_DIR), demo_episodes=5).demo_episodes == 5
-    assert TrainConfig().demo_episodes == 0
+    assert own_algo.demos.episodes == DEMOS_EPISODES and own_algo.algo.bc_weight == 3.0
+    assert TrainConfig().with_(demos={"folder": str(DEFAULT_DEMO_DIR), "episodes": 5}).demos.episodes == 5
+    assert TrainConfig().demos.episodes == 0
     from dualarm.training.demonstrations import record_recording_replays
-    moved = TrainConfig().with_(condition="none", demos=str(DEFAULT_DEMO_DIR), demo_episodes=3)
+    moved = TrainConfig().with_(condition="none", demos={"folder": str(DEFAULT_DEMO_DIR), "episodes": 3})
     lines = []
     buffer = record_recording_replays(moved, None, log=lines.append)
     assert buffer.data["done"][:len(buffer)].sum() == 10 + 3          # own scenes + moved
     assert lines == ["demos: 3 of 3 recordings moved to new placements succeed"]
     # Joint control: each cartesian replay is done again in joint space (in_joint_control);
     # the shipped recordings give 8 of 10 there, and the other two are named.
-    joint = TrainConfig().with_(condition="none", demos=str(DEFAULT_DEMO_DIR), demo_episodes=3,
+    joint = TrainConfig().with_(condition="none", demos={"folder": str(DEFAULT_DEMO_DIR), "episodes": 3},
                                 task={"control": "joint"})
     lines = []
     buffer = record_recording_replays(joint, None, log=lines.append)
@@ -162,21 +162,21 @@ def test_demos_options_are_checked_and_the_command_turns_them_on(tmp_path):
     assert main(["train", "--config", str(tmp_path / "tiny.yaml"), "--condition", "none",
                  "--episodes", "2", "--demos", str(DEFAULT_DEMO_DIR), "--out", str(out)]) == 0
     saved = TrainConfig.load_saved(out / "config.yaml")
-    assert saved.demos == str(DEFAULT_DEMO_DIR.resolve())
+    assert saved.demos.folder == str(DEFAULT_DEMO_DIR.resolve())
     assert saved.algo.demo_batch_size == DEMOS_ALGO["demo_batch_size"]
     assert saved.algo.bc_weight == DEMOS_ALGO["bc_weight"]
 
 
 def test_the_shuffled_control_keeps_states_and_actions_but_not_their_pairing():
-    """shuffle_demos permutes each demonstration episode's actions in time: the same states and
+    """demos.shuffle permutes each demonstration episode's actions in time: the same states and
     the same actions per episode are stored, but paired differently."""
     from dualarm.errors import InputError
     from dualarm.training import TrainConfig
     from dualarm.training.demonstrations import record_recording_replays
 
-    config = TrainConfig().with_(condition="none", demos=str(DEFAULT_DEMO_DIR), demo_episodes=2)
+    config = TrainConfig().with_(condition="none", demos={"folder": str(DEFAULT_DEMO_DIR), "episodes": 2})
     plain = record_recording_replays(config, None)
-    shuffled = record_recording_replays(config.with_(shuffle_demos=True), None)
+    shuffled = record_recording_replays(config.with_(demos={"shuffle": True}), None)
     n = len(plain)
     assert len(shuffled) == n
     np.testing.assert_array_equal(plain.data["obs"][:n], shuffled.data["obs"][:n])
@@ -185,8 +185,8 @@ def test_the_shuffled_control_keeps_states_and_actions_but_not_their_pairing():
         a, b = plain.data["act"][start:end], shuffled.data["act"][start:end]
         np.testing.assert_array_equal(np.sort(a, axis=0), np.sort(b, axis=0))
     assert not np.array_equal(plain.data["act"][:n], shuffled.data["act"][:n])
-    with pytest.raises(InputError, match="control for demos"):
-        TrainConfig().with_(shuffle_demos=True)
+    with pytest.raises(InputError, match="shuffle is a control for the recordings"):
+        TrainConfig().with_(demos={"shuffle": True})
 
 
 def test_phase_following_replays_the_recordings_and_ignores_the_persons_pauses(shipped):

@@ -399,7 +399,7 @@ def test_runs_with_later_starts_are_measured_on_their_evaluations(tmp_path):
     e = np.arange(1, 401)
     evals = [(100, 0.0), (200, 0.5), (300, 0.9), (400, 0.95)]
     write_run(tmp_path, "none", 0, np.ones(400), 100 * np.ones(400), e, evals,
-              start_probs=(0.2, 0.2, 0.6))
+              starts={"probs": (0.2, 0.2, 0.6)})
     report = build_report(tmp_path, window=50)
     none = report.conditions["none"]
     assert none.episodes_to_target.values.tolist() == [300]          # training success: 50
@@ -413,7 +413,7 @@ def test_the_averaged_actors_evaluations_are_read_on_request(tmp_path, capsys):
     run without it is an error naming the file and the column."""
     e = np.arange(1, 401)
     d = write_run(tmp_path, "none", 0, np.ones(400), 100 * np.ones(400), e,
-                  start_probs=(0.2, 0.2, 0.6))
+                  starts={"probs": (0.2, 0.2, 0.6)})
     rows = [(100, 0.0, 0.5), (200, 0.5, 0.9), (300, 0.9, 0.95), (400, 0.6, 0.7)]
     (d / "eval.csv").write_text("episode,success_rate,average_success_rate\n"
                                 + "".join(f"{a},{b},{c}\n" for a, b, c in rows))

@@ -70,7 +70,7 @@ def test_averaged_actors_are_evaluated_beside_without_changing_training(tmp_path
     algo = DADDPGConfig(hidden=(32, 32), batch_size=32, warmup_steps=100, buffer_size=5000)
     config = TrainConfig.paper().with_(condition="none", episodes=24, num_envs=4, eval_every=8,
                          eval_episodes=4, algo=algo, task={"max_episode_steps": 20}, seed=5,
-                         start_probs=(0.2, 0.2, 0.6), start_curriculum=0.5, curriculum_probe=4)
+                         starts={"probs": (0.2, 0.2, 0.6), "curriculum": 0.5, "probe": 4})
     averaged = config.with_(algo=algo.with_(policy_average=0.05))
     train(config, tmp_path / "plain", progress=False)
     train(averaged, tmp_path / "averaged", progress=False)
@@ -147,8 +147,7 @@ def small_toy_config(**changes):
     algo = DADDPGConfig(hidden=(16, 16), batch_size=32, warmup_steps=100, buffer_size=5000)
     base = dict(condition="none", episodes=32, num_envs=8, eval_every=0, checkpoint_every=8,
                 algo=algo)
-    base.update(changes)
-    return TrainConfig.paper().with_(**base)
+    return TrainConfig.paper().with_(**base).with_(**changes)
 
 
 def test_resume_extends_a_finished_run(tmp_path):
@@ -232,7 +231,7 @@ def test_daddpg_learns_the_baxter_reach_to_80_percent_without_demonstrations(tmp
     machine with other floating point could lose); about 5 minutes on one core."""
     algo = DADDPGConfig(hidden=(128, 128), reward_scale=1 / 4000, q_clip=1.0, action_l2=0.02)
     config = TrainConfig.paper().with_(condition="none", episodes=1600, num_envs=16, eval_every=80,
-                         eval_episodes=32, her_share=0.8, algo=algo, seed=0,
+                         eval_episodes=32, replay={"her_share": 0.8}, algo=algo, seed=0,
                          task={"success_at": "reach", "max_episode_steps": 30})
     train(config, tmp_path / "run", progress=False)
     success = [float(r["success_rate"]) for r in rows(tmp_path / "run" / "eval.csv")]
@@ -273,7 +272,8 @@ def test_daddpg_with_demonstrations_learns_the_baxter_reach_to_80_percent(tmp_pa
     algo = DADDPGConfig(hidden=(128, 128), reward_scale=1 / 4000, q_clip=1.0, action_l2=0.02,
                         demo_batch_size=64, bc_weight=30.0)
     config = TrainConfig.paper().with_(condition="none", episodes=480, num_envs=16, eval_every=80,
-                         eval_episodes=32, her_share=0.8, demo_episodes=64, algo=algo, seed=0,
+                         eval_episodes=32, replay={"her_share": 0.8}, demos={"episodes": 64}, algo=algo,
+                         seed=0,
                          task={"success_at": "reach", "max_episode_steps": 30})
     train(config, tmp_path / "run", progress=False)
     success = [float(r["success_rate"]) for r in rows(tmp_path / "run" / "eval.csv")]
@@ -285,10 +285,9 @@ def demo_config(**changes):
     algo = DADDPGConfig(hidden=(32, 32), batch_size=32, warmup_steps=100, buffer_size=5000,
                         demo_batch_size=16, bc_weight=1.0)
     base = dict(condition="none", episodes=16, num_envs=4, eval_every=0, checkpoint_every=8,
-                demo_episodes=4, algo=algo, task={"max_episode_steps": 20, "success_at": "reach"},
+                demos={"episodes": 4}, algo=algo, task={"max_episode_steps": 20, "success_at": "reach"},
                 seed=2)
-    base.update(changes)
-    return TrainConfig.paper().with_(**base)
+    return TrainConfig.paper().with_(**base).with_(**changes)
 
 
 def test_demonstrations_are_the_expert_in_the_runs_own_environment():
@@ -319,21 +318,21 @@ def test_run_with_demonstrations_resumes_exactly(tmp_path):
     train(demo_config(episodes=8), tmp_path / "run", progress=False)
     resume(tmp_path / "run", episodes=16, progress=False)
     assert rows(tmp_path / "run" / "metrics.csv") == rows(tmp_path / "ref" / "metrics.csv")
-    train(demo_config(demo_episodes=0, algo=DADDPGConfig(hidden=(32, 32), batch_size=32,
+    train(demo_config(demos={"episodes": 0}, algo=DADDPGConfig(hidden=(32, 32), batch_size=32,
                                                          warmup_steps=100, buffer_size=5000)),
           tmp_path / "plain", progress=False)
     assert rows(tmp_path / "plain" / "metrics.csv") != rows(tmp_path / "ref" / "metrics.csv")
 
 
 def test_demonstration_settings_are_checked():
-    with pytest.raises(ValueError, match="demo_episodes"):
+    with pytest.raises(ValueError, match="demos.episodes"):
         TrainConfig.paper().with_(algo=DADDPGConfig(demo_batch_size=8))
-    with pytest.raises(ValueError, match="demo_episodes must be >= 0"):
-        TrainConfig.paper().with_(demo_episodes=-1)
+    with pytest.raises(ValueError, match="demos: episodes must be >= 0"):
+        TrainConfig.paper().with_(demos={"episodes": -1})
     with pytest.raises(ValueError, match="cartesian control only"):
-        TrainConfig.paper().with_(demo_episodes=2, task={"control": "joint"})
+        TrainConfig.paper().with_(demos={"episodes": 2}, task={"control": "joint"})
     with pytest.raises(Exception, match="custom environment"):
-        Trainer.start(small_toy_config(demo_episodes=2), "unused", make_env=TwoPointMassEnv)
+        Trainer.start(small_toy_config(demos={"episodes": 2}), "unused", make_env=TwoPointMassEnv)
 
 
 def curriculum_config(**changes):
@@ -341,9 +340,8 @@ def curriculum_config(**changes):
                         twin_critics=True, target_noise=0.2, reward_scale=0.00025)
     base = dict(condition="none", episodes=16, num_envs=4, eval_every=8, eval_episodes=4,
                 checkpoint_every=8, algo=algo, task={"max_episode_steps": 20},
-                start_probs=(0.4, 0.2, 0.4), her_share=0.8, seed=3)
-    base.update(changes)
-    return TrainConfig.paper().with_(**base)
+                starts={"probs": (0.4, 0.2, 0.4)}, replay={"her_share": 0.8}, seed=3)
+    return TrainConfig.paper().with_(**base).with_(**changes)
 
 
 def box_offset_obs(config, obs_size, offsets) -> np.ndarray:
@@ -363,7 +361,7 @@ def test_run_with_later_starts_and_hindsight_targets_resumes_exactly(tmp_path, m
     uninterrupted run's rows; the policy loads."""
     from dualarm.training.policy import load_policy
 
-    config = curriculum_config(start_curriculum=moving, curriculum_probe=probe)
+    config = curriculum_config(starts={"curriculum": moving, "probe": probe})
     train(config, tmp_path / "ref", progress=False)
     train(config.with_(episodes=8), tmp_path / "run", progress=False)
     resume(tmp_path / "run", episodes=16, progress=False)
@@ -379,21 +377,21 @@ def test_run_with_later_starts_and_hindsight_targets_resumes_exactly(tmp_path, m
 def test_curriculum_probe_measures_the_later_starts_with_the_deterministic_policy(tmp_path):
     """With curriculum_probe the curriculum counts probe episodes only (both arms at the
     boxes, both holding them), made at each evaluation, not the training episodes."""
-    config = curriculum_config(start_curriculum=0.5, curriculum_probe=4)
+    config = curriculum_config(starts={"curriculum": 0.5, "probe": 4})
     trainer = Trainer.start(config, tmp_path / "run", progress=False)
     trainer.run()
     trainer.close()
     recent = trainer.curriculum.recent
     assert len(recent[0]) == 0                                    # no training episode counted
     assert len(recent[1]) == len(recent[2]) == 8                  # 2 evaluations x 4 probes
-    assert set(trainer.probe_vecs) == {1, 2}
-    assert (trainer.probe_vecs[2].starts() == 2).all()
-    with pytest.raises(ValueError, match="curriculum_probe measures"):
-        curriculum_config(curriculum_probe=4)
+    assert set(trainer.probes.vecs) == {1, 2}
+    assert (trainer.probes.vecs[2].starts() == 2).all()
+    with pytest.raises(ValueError, match="probe measures the curriculum"):
+        curriculum_config(starts={"probe": 4})
 
 
 def test_far_action_l2_weighs_the_penalty_by_the_distance_to_the_box(tmp_path):
-    config = curriculum_config(far_action_l2=0.001, near_box_radius=0.05, episodes=8,
+    config = curriculum_config(near_box={"far_action_l2": 0.001, "radius": 0.05}, episodes=8,
                                algo=DADDPGConfig(hidden=(16, 16), action_l2=0.5, batch_size=16,
                                                  warmup_steps=50))
     trainer = Trainer.start(config, tmp_path / "run", progress=False)
@@ -402,7 +400,7 @@ def test_far_action_l2_weighs_the_penalty_by_the_distance_to_the_box(tmp_path):
             [[0.03, 0.0, 0.0]] * 2,                              # 3 cm from the box: near
             [[0.0, 0.04, 0.04]] * 2,                             # 5.7 cm: far
             [[0.0, 0.0, -0.2], [0.0, 0.0, 0.0]]]), dtype=torch.float32)  # left far, right at the box
-        w = trainer.batch_shaping.penalty_weight(obs)
+        w = trainer.updates.shaping.penalty_weight(obs)
         assert w.shape == (3, 2)
         torch.testing.assert_close(w, torch.tensor([[0.5, 0.5], [0.001, 0.001], [0.001, 0.5]]))
         seen = []
@@ -412,10 +410,10 @@ def test_far_action_l2_weighs_the_penalty_by_the_distance_to_the_box(tmp_path):
         assert seen and all(b.shape == (16, 2) for b in seen)
     finally:
         trainer.close()
-    with pytest.raises(ValueError, match="far_action_l2 must be"):
-        curriculum_config(far_action_l2=-1.0)
-    with pytest.raises(ValueError, match="near_box_radius"):
-        curriculum_config(near_box_radius=0.0)
+    with pytest.raises(ValueError, match="near_box: far_action_l2 must be"):
+        curriculum_config(near_box={"far_action_l2": -1.0})
+    with pytest.raises(ValueError, match="near_box: radius"):
+        curriculum_config(near_box={"radius": 0.0})
 
 
 def exploring_arguments(trainer, name: str) -> list:
@@ -434,7 +432,7 @@ def exploring_arguments(trainer, name: str) -> list:
 
 
 def test_near_random_eps_sets_the_share_of_random_actions_near_the_box(tmp_path):
-    config = curriculum_config(near_random_eps=0.0, near_box_radius=0.05, episodes=8,
+    config = curriculum_config(near_box={"random_eps": 0.0, "radius": 0.05}, episodes=8,
                                algo=DADDPGConfig(hidden=(16, 16), random_eps=0.3, batch_size=16,
                                                  warmup_steps=50))
     trainer = Trainer.start(config, tmp_path / "run", progress=False)
@@ -453,14 +451,14 @@ def test_near_random_eps_sets_the_share_of_random_actions_near_the_box(tmp_path)
         assert plain.exploration.random_eps(obs) is None
     finally:
         plain.close()
-    with pytest.raises(ValueError, match="near_random_eps must be"):
-        curriculum_config(near_random_eps=1.5)
+    with pytest.raises(ValueError, match="near_box: random_eps must be"):
+        curriculum_config(near_box={"random_eps": 1.5})
 
 
 def test_approach_shaping_is_potential_based_on_the_grip_to_box_distance(tmp_path):
     """gamma * phi(s') * (1 - done) - phi(s) with phi = -k * distance, per arm; in the batches
     the learner updates on."""
-    config = curriculum_config(approach_shaping=2.0, episodes=8)
+    config = curriculum_config(shaping={"approach": 2.0}, episodes=8)
     trainer = Trainer.start(config, tmp_path / "run", progress=False)
     try:
         # left 0.5 m from its box, then 0.1 m; right stays 0.2 m away
@@ -470,7 +468,7 @@ def test_approach_shaping_is_potential_based_on_the_grip_to_box_distance(tmp_pat
                     for left in ([0.0, 0.3, 0.4], [0.0, 0.0, 0.1]))
         done = torch.tensor([0.0, 1.0])
         g = config.algo.gamma
-        shaping = trainer.batch_shaping.shaping({"obs": obs, "next_obs": nxt, "done": done})
+        shaping = trainer.updates.shaping.shaping({"obs": obs, "next_obs": nxt, "done": done})
         torch.testing.assert_close(shaping, torch.tensor(
             [[g * -0.2 + 1.0, g * -0.4 + 0.4], [1.0, 0.4]]))
         seen = []
@@ -480,16 +478,16 @@ def test_approach_shaping_is_potential_based_on_the_grip_to_box_distance(tmp_pat
         assert seen and all(b["shaping"].shape == (config.algo.batch_size, 2) for b in seen)
     finally:
         trainer.close()
-    with pytest.raises(ValueError, match="approach_shaping must be"):
-        curriculum_config(approach_shaping=-1.0)
+    with pytest.raises(ValueError, match="shaping: approach must be"):
+        curriculum_config(shaping={"approach": -1.0})
 
 
 def test_carry_shaping_adds_a_potential_on_the_box_to_target_distance(tmp_path):
-    """carry_shaping k: phi gains -k * |target - box| per arm, beside approach_shaping's term;
+    """shaping.carry k: phi gains -k * |target - box| per arm, beside shaping.approach's term;
     a box that does not move adds the constant -(1 - gamma) phi."""
     from dualarm.envs.rules import observation_layout
 
-    config = curriculum_config(approach_shaping=2.0, carry_shaping=3.0, episodes=8)
+    config = curriculum_config(shaping={"approach": 2.0, "carry": 3.0}, episodes=8)
     layout = observation_layout(config.task_config().observes_joint_angles)
     trainer = Trainer.start(config, tmp_path / "run", progress=False)
     try:
@@ -501,21 +499,21 @@ def test_carry_shaping_adds_a_potential_on_the_box_to_target_distance(tmp_path):
                  "next_obs": torch.as_tensor(nxt, dtype=torch.float32), "done": torch.zeros(1)}
         g = config.algo.gamma
         phi = lambda d_box, d_target: -2.0 * d_box - 3.0 * d_target  # noqa: E731
-        torch.testing.assert_close(trainer.batch_shaping.shaping(batch), torch.tensor(
+        torch.testing.assert_close(trainer.updates.shaping.shaping(batch), torch.tensor(
             [[g * phi(0.1, 0.1) - phi(0.1, 0.4), g * phi(0.1, 0.2) - phi(0.1, 0.2)]]))
     finally:
         trainer.close()
-    with pytest.raises(ValueError, match="carry_shaping must be"):
-        curriculum_config(carry_shaping=-0.5)
+    with pytest.raises(ValueError, match="shaping: carry must be"):
+        curriculum_config(shaping={"carry": -0.5})
 
 
 def test_mirror_episodes_stores_each_episode_and_its_mirror_image(tmp_path):
-    """With mirror_episodes the replay holds every real episode followed by its mirror image
+    """With replay.mirror the replay holds every real episode followed by its mirror image
     (dualarm.envs.mirror), guide term recomputed; episodes and returns count the real ones
     only, and a resumed run gives the uninterrupted run's rows."""
     from dualarm.envs.mirror import TaskMirror
 
-    config = curriculum_config(condition="multi", mirror_episodes=True, episodes=8, eval_every=4,
+    config = curriculum_config(condition="multi", replay={"mirror": True}, episodes=8, eval_every=4,
                                task={"max_episode_steps": 20, "joint_angles_in_obs": True})
     trainer = Trainer.start(config, tmp_path / "ref", progress=False)
     trainer.run()
@@ -541,17 +539,17 @@ def test_mirror_episodes_stores_each_episode_and_its_mirror_image(tmp_path):
     resume(tmp_path / "run", episodes=8, progress=False)
     assert rows(tmp_path / "run" / "metrics.csv") == rows(tmp_path / "ref" / "metrics.csv")
     with pytest.raises(ValueError, match="joint angles"):
-        curriculum_config(condition="multi", mirror_episodes=True,
+        curriculum_config(condition="multi", replay={"mirror": True},
                           task={"joint_angles_in_obs": False})
 
 
 def test_curriculum_options_are_checked(tmp_path):
-    with pytest.raises(ValueError, match="start_curriculum must be in"):
-        TrainConfig.paper().with_(start_probs=(0.2, 0.2, 0.6), start_curriculum=1.5)
-    with pytest.raises(ValueError, match="start_curriculum moves the start states"):
-        TrainConfig.paper().with_(start_curriculum=0.5)
-    with pytest.raises(ValueError, match="her_share"):
-        TrainConfig.paper().with_(her_share=1.5)
-    with pytest.raises(Exception, match="start_probs"):
-        Trainer.start(small_toy_config(start_probs=(0.0, 0.0, 1.0)), tmp_path / "toy",
+    with pytest.raises(ValueError, match="starts: curriculum must be in"):
+        TrainConfig.paper().with_(starts={"probs": (0.2, 0.2, 0.6), "curriculum": 1.5})
+    with pytest.raises(ValueError, match="curriculum moves the start states"):
+        TrainConfig.paper().with_(starts={"curriculum": 0.5})
+    with pytest.raises(ValueError, match="replay: her_share"):
+        TrainConfig.paper().with_(replay={"her_share": 1.5})
+    with pytest.raises(Exception, match="starts"):
+        Trainer.start(small_toy_config(starts={"probs": (0.0, 0.0, 1.0)}), tmp_path / "toy",
                       make_env=TwoPointMassEnv, progress=False)

@@ -147,3 +147,59 @@ def drop_removed_fields(d: dict, removed: Mapping, where: str) -> dict:
             raise InputError(f"{where}: {name}: {given!r} is no longer an option (only "
                              f"{value!r}; docs/learning-runs.md names the commit that had it)"[:300])
     return d
+
+
+def plain(value):
+    """A settings value as YAML writes it: tuples as lists, a settings group as its mapping."""
+    if isinstance(value, Settings):
+        return value.to_dict()
+    if isinstance(value, tuple):
+        return [plain(v) for v in value]
+    return value
+
+
+class Settings:
+    """What every frozen settings dataclass read from YAML shares: ``to_dict``, ``from_dict``
+    on top of a base (a file says only what it changes), ``with_``. A subclass names itself in
+    errors with ``LABEL`` and may list ``REMOVED`` options (``drop_removed_fields``); its
+    ``__post_init__`` calls ``check_field_types`` and checks its own values, in one place."""
+
+    LABEL = "settings"
+    REMOVED: Mapping = {}
+    #: Older names ``upgrade`` turns into fields.
+    OLD_NAMES: tuple[str, ...] = ()
+
+    @classmethod
+    def check_names(cls, d: Mapping, where: str) -> None:
+        """Refuse a name that is neither a field, a removed option nor an old name."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(d) - known - set(cls.REMOVED) - set(cls.OLD_NAMES), key=str)
+        if unknown:
+            raise InputError(f"{where}: unknown {cls.LABEL} field(s) {unknown}; known: {sorted(known)}")
+
+    @classmethod
+    def upgrade(cls, d: dict, where: str) -> dict:
+        """``d`` of an older layout in today's (here: removed options dropped)."""
+        return drop_removed_fields(d, cls.REMOVED, where)
+
+    def to_dict(self) -> dict:
+        return {f.name: plain(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+    @classmethod
+    def from_dict(cls, d, where: str = "config", base=None):
+        """Build from a mapping, naming unknown fields (``where`` prefixes every message); the
+        fields it leaves out take ``base``'s values (default: the class's defaults)."""
+        if not isinstance(d, Mapping):
+            raise InputError(f"{where}: expected a mapping of {cls.LABEL} settings, got {d!r}"[:160])
+        cls.check_names(d, where)
+        d = cls.upgrade(dict(d), where)
+        if base is not None:
+            d = {**base.to_dict(), **d}
+        try:
+            return cls(**d)
+        except InputError as exc:
+            raise InputError(f"{where}: {exc}") from None
+
+    def with_(self, **changes):
+        """A copy with some fields changed (checked as a new one is)."""
+        return dataclasses.replace(self, **changes)

@@ -83,7 +83,7 @@ def add_train_command(sub) -> None:
     train.add_argument("--demos", type=InputPath, metavar="DIR",
                        help="a demonstration folder (recordings with gripper events, labels.csv, "
                             "scene.csv; the shipped set is src/dualarm/data/demos): its recordings, "
-                            "replayed at their own scenes and moved to the config's demo_episodes "
+                            "replayed at their own scenes and moved to the config's demos.episodes "
                             "(default 256) new placements, fill a demonstration buffer with "
                             "Q-filtered behaviour cloning (the config's algo.demo_batch_size and "
                             "bc_weight, or DEMOS_ALGO's). Default: none, as in the paper")

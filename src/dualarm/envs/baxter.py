@@ -33,24 +33,11 @@ from dualarm.envs.rules import (FINGER_CLOSED, FINGER_OPEN, GAP_AT_ZERO, GraspRu
                                 finger_targets, observation_layout)
 from dualarm.errors import InputError
 from dualarm.envs.scene import GRIP_DOWN_QUAT, compiled_model
+from dualarm.envs.starts import NORMAL_START, StartDistribution
 from dualarm.kinematics import ARMS, BAXTER_JOINT_LIMITS, BAXTER_JOINT_NAMES
 
-#: Height (m) above its box at which the longest approach start ends (``approach_starts``).
+#: Height (m) above its box at which the longest approach start ends (``StartDistribution.approach``).
 APPROACH_HEIGHT = 0.05
-
-
-def check_start_probs(probs) -> np.ndarray | None:
-    """Validate start probabilities (reach, grasp, align): 3 non-negative numbers summing to 1.
-
-    Returns them as an array, or None for None and for (1, 0, 0) (the normal reset).
-    """
-    if probs is None:
-        return None
-    p = np.asarray(probs, dtype=float)
-    if p.shape != (3,) or not np.isfinite(p).all() or (p < 0).any() or abs(p.sum() - 1) > 1e-6:
-        raise ValueError("start probabilities must be 3 non-negative numbers (reach, grasp, "
-                         f"align) that sum to 1, got {list(np.ravel(p))}")
-    return None if p[0] == 1.0 else p / p.sum()
 
 
 #: Per-arm layout of the state gathered from MuJoCo each step (``qpos_gather``, 16 entries, and
@@ -102,14 +89,9 @@ class BaxterBatch:
         num_envs: number of copies.
         render_size: (height, width) of rendered frames in pixels.
 
-        start_probs: probabilities (reach, grasp, align) with which each arm starts an
-            episode at that sub-task (drawn per arm; see ``reset_env``). None: every episode
-            starts at reach, the task's normal reset. Training curricula only; evaluations
-            use the normal reset.
-        approach_starts: with ``start_probs``, an arm that starts at reach begins a uniform
-            fraction of the way from its home position to ``APPROACH_HEIGHT`` above its box
-            (gripper down, fingers open) instead of at home: starts that cover the approach,
-            so that the value of being at the box can spread back along it.
+        starts: where each arm begins an episode (``dualarm.envs.starts``); the default is the
+            task's normal reset, every arm at home. Training curricula only; evaluations use
+            the normal reset.
 
     Actions are (num_envs, 2, 4) in cartesian mode (dx, dy, dz, grip) and (num_envs, 2, 8)
     in joint mode (7 joint deltas, grip), arms in the order left, right, each value in
@@ -118,13 +100,11 @@ class BaxterBatch:
 
     def __init__(self, config: TaskConfig = TaskConfig(), constraints: ConstraintSet | None = None,
                  num_envs: int = 1, render_size: tuple[int, int] = (480, 640),
-                 start_probs: tuple[float, float, float] | None = None,
-                 approach_starts: bool = False):
+                 starts: StartDistribution = NORMAL_START):
         if num_envs < 1:
             raise ValueError(f"num_envs must be at least 1, got {num_envs}")
         self.config = config
-        self.start_probs = check_start_probs(start_probs)
-        self.approach_starts = approach_starts
+        self.starts = starts
         if config.condition == "none":
             if constraints is not None:
                 raise ValueError("condition 'none' has no guide term: pass constraints=None")
@@ -224,9 +204,8 @@ class BaxterBatch:
             d.mocap_quat[ix.hand_mocap] = GRIP_DOWN_QUAT
         mujoco.mj_forward(m, d)
         # Drawn after the placement, so a seed places boxes and targets the same either way.
-        starts = (r.choice(3, size=2, p=self.start_probs) if self.start_probs is not None
-                  else np.zeros(2, dtype=np.int64))
-        if starts.any() or (self.approach_starts and self.start_probs is not None):
+        starts = self.starts.draw(r)
+        if starts.any() or self.starts.approach:
             self._start_later(i, starts, r)
         self.start_kind[i] = starts
 
@@ -247,7 +226,7 @@ class BaxterBatch:
 
     def set_start_probs(self, probs) -> None:
         """Change the start probabilities (reach, grasp, align) of the next resets."""
-        self.start_probs = check_start_probs(probs)
+        self.starts = self.starts.with_probs(probs)
 
     def _start_later(self, i: int, starts: np.ndarray, rng: np.random.Generator) -> None:
         """Put the arms of copy ``i`` whose ``starts`` entry is 1 or 2 at that sub-task.
@@ -258,14 +237,14 @@ class BaxterBatch:
         fingers closing on it (reach and grasp done). The arm's joints come from inverse
         kinematics with the gripper pointing down; a short settle (two control periods)
         lets the fingers take hold. Arms at reach (0) stay at home, or with
-        ``approach_starts`` begin a uniform fraction of the way to above their box.
+        ``starts.approach`` begin a uniform fraction of the way to above their box.
         """
         c, m, d, ix = self.config, self.model, self.datas[i], self.ix
         grip = d.site_xpos[ix.grip_site].copy()               # (2, 3) home grip sites
         box = self.box_start_pos[i].copy()
         for arm in range(2):
             if starts[arm] == 0:
-                if self.approach_starts:
+                if self.starts.approach:
                     above = box[arm] + APPROACH_HEIGHT * UP
                     grip[arm] = grip[arm] + rng.uniform() * (above - grip[arm])
                 continue

@@ -60,7 +60,7 @@ class TaskMirror:
     def __init__(self, config: TaskConfig, constraints: ConstraintSet | None = None):
         joints = config.observes_joint_angles
         if constraints is not None and not joints:
-            raise InputError("mirror_episodes with a guided condition needs the joint angles in "
+            raise InputError("replay.mirror with a guided condition needs the joint angles in "
                              "the observation (task.joint_angles_in_obs: true): the mirrored "
                              "guide term is computed from them")
         self.config, self.constraints = config, constraints

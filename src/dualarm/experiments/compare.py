@@ -130,7 +130,7 @@ class Comparison:
 
     def run_config(self, condition: str, seed: int) -> TrainConfig:
         """The TrainConfig of one run: the base with the run's condition, seed, episodes and
-        constraints, and for ``demos`` the recordings (``TrainConfig.demos``) with the multi
+        constraints, and for ``demos`` the recordings (``TrainConfig.demos.folder``) with the multi
         guide term."""
         path = self.constraints_path(condition)
         demos = str(self.demos_dir) if condition == DEMOS_CONDITION else None
@@ -320,8 +320,8 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
     given_dir = request.constraints_dir.resolve() if request.constraints_dir is not None else None
     if given_dir is not None and not given_dir.is_dir():
         raise InputError(f"{given_dir}: --constraints-dir is not a directory")
-    if request.base is not None and request.base.demos is not None:
-        raise InputError(f"{request.base_source}: field 'demos' is set per run by the comparison: "
+    if request.base is not None and request.base.demos.recordings:
+        raise InputError(f"{request.base_source}: field 'demos.folder' is set per run by the comparison: "
                          "give the folder as --demos DIR (the demos condition)")
 
     if existing is None:

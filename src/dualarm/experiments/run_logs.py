@@ -41,7 +41,7 @@ class Run:
         eval_episode: (k,) training episodes after which an evaluation ran.
         eval_success: (k,) success rate of each evaluation, in [0, 1].
         notes: remarks on reading it (e.g. an incomplete last row dropped).
-        later_starts: training episodes may start at later sub-tasks (``start_probs``), so
+        later_starts: training episodes may start at later sub-tasks (``starts.probs``), so
             their success is not the task's from the normal reset (evaluations are).
     """
 
@@ -171,4 +171,4 @@ def load_run(run_dir: str | Path, actors: str = "policy") -> Run:
                planned_episodes=config.episodes, wall_time_s=m["wall_time_s"],
                return_total=m["return_total"], success=m["success"],
                eval_episode=e["episode"].astype(int), eval_success=e[column],
-               notes=tuple(notes), later_starts=config.uses_start_states)
+               notes=tuple(notes), later_starts=config.starts.later)

@@ -280,7 +280,7 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
     later = sorted(c for c, s in conditions.items() if any(r.later_starts for r in s.runs))
     if later:
         notes.append(f"{', '.join(later)}: training episodes start at later sub-tasks too "
-                     "(start_probs), so episodes to target success and max success are read from "
+                     "(starts.probs), so episodes to target success and max success are read from "
                      "the evaluations (deterministic policy, normal reset), not from training "
                      "success; convergence still reads training returns")
     lengths = {s.episodes for s in conditions.values()}

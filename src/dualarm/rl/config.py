@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass
 
 from dualarm.errors import InputError
-from dualarm.typed_fields import ANY, check_field_types, drop_removed_fields
+from dualarm.typed_fields import ANY, Settings, check_field_types
 
 
 #: The actors a deterministic policy can act with (``DADDPGConfig.eval_actor``).
@@ -21,18 +21,6 @@ REMOVED_FIELDS = {"noise": "gaussian", "value_rescale": False, "advantage_learni
                   "clone_updates": 0, "critic_warmup": 0}
 
 
-def _upgrade(d: dict, where: str) -> dict:
-    """A settings dict of an older layout in today's: ``polyak`` -> ``tau``, removed options
-    dropped where they have the value that is today's behaviour."""
-    d = dict(d)
-    if "polyak" in d:
-        if "tau" in d:
-            raise InputError(f"{where}: give tau or polyak (tau = 1 - polyak), not both")
-        polyak = d.pop("polyak")
-        d["tau"] = 1.0 - polyak if isinstance(polyak, (int, float)) and not isinstance(polyak, bool) else polyak
-    return drop_removed_fields(d, REMOVED_FIELDS, where)
-
-
 #: Size bounds: these fields decide memory before the first step (a network of width 10**12
 #: asks for petabytes), so they are bounded where the config is read.
 MAX_LAYERS, MAX_WIDTH = 8, 4096
@@ -41,12 +29,29 @@ SIZE_BOUNDS = {"hidden": f" (1 to {MAX_LAYERS} layers of 1 to {MAX_WIDTH} units)
                "batch_size": f" (1 to {MAX_BATCH})",
                "buffer_size": f" (batch_size to {MAX_BUFFER:,} transitions)"}
 
+
 @dataclass(frozen=True)
-class DADDPGConfig:
+class DADDPGConfig(Settings):
     """Dual-agent DDPG settings. Defaults start from Plappert et al. 2018 (DDPG+HER on Fetch)
     and were tuned on the Baxter task with ``benchmarks/update_speed.py`` and short runs;
     docs/training.md records the measurements behind each change.
     """
+
+    LABEL = "DADDPG"
+    REMOVED = REMOVED_FIELDS
+    OLD_NAMES = ("polyak",)
+
+    @classmethod
+    def upgrade(cls, d: dict, where: str) -> dict:
+        """A settings dict of an older layout in today's: ``polyak`` -> ``tau``, removed options
+        dropped where they have the value that is today's behaviour."""
+        if "polyak" in d:
+            if "tau" in d:
+                raise InputError(f"{where}: give tau or polyak (tau = 1 - polyak), not both")
+            d = dict(d)
+            polyak = d.pop("polyak")
+            d["tau"] = 1.0 - polyak if isinstance(polyak, (int, float)) and not isinstance(polyak, bool) else polyak
+        return super().upgrade(d, where)
 
     hidden: tuple[int, ...] = (256, 256)
     """Hidden layer widths of every actor and critic (Plappert: 3 x 256; 2 x 256 halves the
@@ -95,7 +100,7 @@ class DADDPGConfig:
     demo_batch_size: int = 0
     """Transitions drawn from the demonstration buffer into every update, next to
     ``batch_size`` from replay (Nair et al. 2018; needs demonstrations, e.g. TrainConfig's
-    ``demo_episodes``). 0: demonstrations are not used, as in the paper."""
+    ``demos.episodes``). 0: demonstrations are not used, as in the paper."""
     bc_weight: float = 0.0
     """Weight of the behaviour-cloning term on the demonstration rows of a batch, Q-filtered:
     only where the critic rates the demonstrated action above the actor's (Nair et al. 2018)."""
@@ -144,29 +149,3 @@ class DADDPGConfig:
         if self.eval_actor == "average" and self.policy_average == 0:
             raise InputError("eval_actor: 'average' needs averaged actors (policy_average > 0)")
 
-    def to_dict(self) -> dict:
-        d = asdict(self)
-        d["hidden"] = list(self.hidden)
-        return d
-
-    @classmethod
-    def from_dict(cls, d: dict, where: str = "config", base: "DADDPGConfig | None" = None
-                  ) -> "DADDPGConfig":
-        """Build from a plain dict, naming unknown fields (``where`` prefixes the message);
-        the fields it leaves out take ``base``'s values (default: this class's defaults)."""
-        if not isinstance(d, dict):
-            raise InputError(f"{where}: expected a mapping of DADDPG settings, got {d!r}"[:160])
-        d = _upgrade(d, where)
-        if base is not None:
-            d = {**base.to_dict(), **d}
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise InputError(f"{where}: unknown DADDPG field(s) {unknown}; known: {sorted(known)}")
-        try:
-            return cls(**d)
-        except InputError as exc:
-            raise InputError(f"{where}: {exc}") from None
-
-    def with_(self, **changes) -> "DADDPGConfig":
-        return replace(self, **changes)

@@ -20,7 +20,7 @@ def trainer_state(trainer) -> dict:
         "rng": trainer.rng.bit_generator.state,
         "torch_rng": torch.get_rng_state(),
         "counters": {"episodes": trainer.episodes, "env_steps": trainer.env_steps,
-                     "updates_owed": trainer.updates_owed, "wall_time_s": trainer.wall_time_s,
+                     "updates_owed": trainer.updates.owed, "wall_time_s": trainer.wall_time_s,
                      "eval_rows": trainer.eval_rows, "best": list(trainer.best),
                      "recent_success": list(trainer.recent_success),
                      "recent_return": list(trainer.recent_return),
@@ -54,7 +54,7 @@ def restore_trainer(trainer, payload: dict) -> None:
         torch.set_rng_state(payload["torch_rng"])
         k = payload["counters"]
         trainer.episodes, trainer.env_steps = int(k["episodes"]), int(k["env_steps"])
-        trainer.updates_owed, trainer.wall_time_s = float(k["updates_owed"]), float(k["wall_time_s"])
+        trainer.updates.owed, trainer.wall_time_s = float(k["updates_owed"]), float(k["wall_time_s"])
         trainer.eval_rows, trainer.best = int(k["eval_rows"]), tuple(k["best"])
         trainer.recent_success.extend(k["recent_success"])
         trainer.recent_return.extend(k["recent_return"])

@@ -1,7 +1,7 @@
 """A reverse curriculum over start states (after Florensa et al. 2017, "Reverse Curriculum
 Generation for Reinforcement Learning"): train most where the task is being learned.
 
-Training episodes may start each arm at a later sub-task (``TrainConfig.start_probs``: at
+Training episodes may start each arm at a later sub-task (``TrainConfig.starts.probs``: at
 reach, at its box with the fingers open, or holding its box). A task learned backwards
 (hindsight targets teach the carry first) needs its starts to move backwards too: while the
 episodes that begin holding the boxes fail, most starts should hold them; once those

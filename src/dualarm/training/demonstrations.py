@@ -19,26 +19,26 @@ DEMO_SEED_BASE = 1_000_003
 
 
 def demonstration_buffer(config: TrainConfig, vec: VectorEnv, constraints) -> ReplayBuffer | None:
-    """The run's demonstration buffer: the recordings of ``config.demos``
-    (``record_recording_replays``), else ``config.demo_episodes`` of the scripted expert in
+    """The run's demonstration buffer: the recordings of ``config.demos.folder``
+    (``record_recording_replays``), else ``config.demos.episodes`` of the scripted expert in
     ``vec`` (``record_expert_demonstrations``), else None."""
-    if config.demos is not None:
+    if config.demos.recordings:
         return record_recording_replays(config, constraints,
                                         log=lambda line: print(line, file=sys.stderr))
-    if config.demo_episodes:
+    if config.demos.episodes:
         return record_expert_demonstrations(config, vec)
     return None
 
 
 def record_expert_demonstrations(config: TrainConfig, vec: VectorEnv) -> ReplayBuffer:
-    """Run ``config.demo_episodes`` episodes of ``ScriptedExpert`` in ``vec`` (the run's
+    """Run ``config.demos.episodes`` episodes of ``ScriptedExpert`` in ``vec`` (the run's
     Baxter task, cartesian control: ``TrainConfig`` checks it) and return their transitions
     (obs and next_obs (N, 2, O), act (N, 2, U), rew (N, 2), done (N,))."""
     from dualarm.envs.expert import ScriptedExpert
 
     task = config.task_config()
     expert = ScriptedExpert(task)
-    buffer = ReplayBuffer(max(1, config.demo_episodes * task.max_episode_steps), 2,
+    buffer = ReplayBuffer(max(1, config.demos.episodes * task.max_episode_steps), 2,
                           vec.obs_size, vec.act_size)
 
     def act(obs: np.ndarray) -> np.ndarray:
@@ -48,18 +48,18 @@ def record_expert_demonstrations(config: TrainConfig, vec: VectorEnv) -> ReplayB
         buffer.add(obs[live], actions[live], step.reward[live], step.obs[live],
                    step.terminated[live])
 
-    evaluate(act, vec, config.demo_episodes, DEMO_SEED_BASE + config.seed, on_step=store)
+    evaluate(act, vec, config.demos.episodes, DEMO_SEED_BASE + config.seed, on_step=store)
     return buffer
 
 
 def record_recording_replays(config: TrainConfig, constraints, log=None) -> ReplayBuffer:
-    """Replay the recordings of ``config.demos`` at their own scenes in the run's task
+    """Replay the recordings of ``config.demos.folder`` at their own scenes in the run's task
     (condition, constraints and observation as training's; ``dualarm.sim_demos.replay``; in a
     joint-control task each cartesian replay is done again in joint space, ``in_joint_control``), and
-    with ``config.demo_episodes`` moved to that many of the task's random placements
+    with ``config.demos.episodes`` moved to that many of the task's random placements
     (``dualarm.sim_demos.augment``, placements seeded from ``DEMO_SEED_BASE`` + the run's
     seed), and return the transitions of those that succeed (their actions permuted within each
-    episode with ``config.shuffle_demos``, the control).
+    episode with ``config.demos.shuffle``, the control).
 
     Args:
         log: called with one line per recording left out (its replay did not succeed).
@@ -74,7 +74,7 @@ def record_recording_replays(config: TrainConfig, constraints, log=None) -> Repl
     from dualarm.sim_demos.replay import in_joint_control, load_replay_folder, replay_demonstration
 
     task = config.task_config()
-    demos, labels, scenes = load_replay_folder(config.demos, task.workspace())
+    demos, labels, scenes = load_replay_folder(config.demos.folder, task.workspace())
     env = BaxterReachGraspAlign(task.with_(control="cartesian"), constraints)   # follows hand paths
     # The learner's task; in joint control each cartesian replay is done again there.
     learner = env if task.control == "cartesian" else BaxterReachGraspAlign(task, constraints)
@@ -89,7 +89,7 @@ def record_recording_replays(config: TrainConfig, constraints, log=None) -> Repl
                 left_out.append(f"{d.source}: no gripper events (left_grip, right_grip columns)")
                 continue
             r = replay_demonstration(env, d, labels[d.name], scenes[d.name],
-                                     following=config.demo_following)
+                                     following=config.demos.following)
             if r.success:
                 usable.append(d)
                 r = in_task(r, scenes[d.name])
@@ -98,9 +98,9 @@ def record_recording_replays(config: TrainConfig, constraints, log=None) -> Repl
                                 f"{task.control} control ({r.why})")
                 continue
             replays.append(r)
-        if usable and config.demo_episodes:
-            moved = augment(env, usable, labels, scenes, config.demo_episodes,
-                            DEMO_SEED_BASE + config.seed, following=config.demo_following)
+        if usable and config.demos.episodes:
+            moved = augment(env, usable, labels, scenes, config.demos.episodes,
+                            DEMO_SEED_BASE + config.seed, following=config.demos.following)
             moved_ok = [m for m in (in_task(r, p) for r, p in zip(moved.replays, moved.placements))
                         if m.success]
             replays += moved_ok
@@ -115,12 +115,12 @@ def record_recording_replays(config: TrainConfig, constraints, log=None) -> Repl
         if log is not None:
             log(f"demos: left out {line}")
     rng = np.random.default_rng([config.seed, 3])
-    kept = [{"obs": r.obs, "act": r.act[rng.permutation(len(r.act))] if config.shuffle_demos else r.act,
+    kept = [{"obs": r.obs, "act": r.act[rng.permutation(len(r.act))] if config.demos.shuffle else r.act,
              "rew": r.rew,
              "next_obs": r.next_obs, "done": r.done} for r in replays]
     if not kept:
         raise InputError(f"none of the {len(demos)} recordings replays to success at its scene "
-                         "(`dualarm demos replay` shows where each stops)", source=str(config.demos))
+                         "(`dualarm demos replay` shows where each stops)", source=str(config.demos.folder))
     rows = sum(len(e["done"]) for e in kept)
     buffer = ReplayBuffer(rows, 2, learner.obs_size, learner.action_size)
     for e in kept:

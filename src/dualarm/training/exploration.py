@@ -1,6 +1,6 @@
 """How the training copies act: uniform random actions during the warm-up, then the online
 actors with Gaussian noise and a share of uniformly random actions, which may differ near the
-box (``near_random_eps``) and far from it (``algo.random_eps``)."""
+box (``near_box.random_eps``) and far from it (``algo.random_eps``)."""
 
 from __future__ import annotations
 
@@ -24,18 +24,18 @@ class Exploration:
         self.config, self.agent, self.rng = config, agent, rng
         self.mask = agent.action_mask[:, 0].numpy()
         self.rel_columns = (box_offset_columns(config.task_config())
-                            if config.near_random_eps is not None else None)
+                            if config.near_box.random_eps is not None else None)
 
     def random_eps(self, obs: np.ndarray) -> np.ndarray | None:
         """The share of random exploring actions per copy and arm, (n, A), from observations
-        (n, A, O): ``near_random_eps`` where the grip site is within ``near_box_radius`` m of
+        (n, A, O): ``near_box.random_eps`` where the grip site is within ``near_box.radius`` m of
         its box, ``algo.random_eps`` farther away; None (the config's everywhere) without
-        ``near_random_eps``."""
-        c = self.config
-        if c.near_random_eps is None:
+        ``near_box.random_eps``."""
+        near_box = self.config.near_box
+        if near_box.random_eps is None:
             return None
-        near = grip_to_box_distance(obs, self.rel_columns) <= c.near_box_radius
-        return np.where(near, c.near_random_eps, c.algo.random_eps)
+        near = grip_to_box_distance(obs, self.rel_columns) <= near_box.radius
+        return np.where(near, near_box.random_eps, self.config.algo.random_eps)
 
     def act(self, obs: np.ndarray, env_steps: int) -> np.ndarray:
         """Actions (n, A, U) in [-1, 1] for observations (n, A, O) after ``env_steps`` joint

@@ -25,21 +25,22 @@ from dualarm.errors import DualarmError, InputError
 from dualarm.locks import DirectoryLock
 from dualarm.rl.daddpg import DADDPG, NonFiniteLoss
 from dualarm.rl.replay import ReplayBuffer
+from dualarm.training.checkpointing import restore_trainer, trainer_state
 from dualarm.training.config import TrainConfig
-from dualarm.training.curriculum import START_CLASSES, ReverseCurriculum
+from dualarm.training.curriculum import ReverseCurriculum
 from dualarm.training.demonstrations import demonstration_buffer
 from dualarm.training.evaluation import evaluate
 from dualarm.training.exploration import Exploration
-from dualarm.training.rounds import run_round
-from dualarm.training.shaping import BatchShaping
-from dualarm.training.checkpointing import restore_trainer, trainer_state
 from dualarm.training.lifecycle import resume_run, start_run
-from dualarm.training.records import (episode_rows, eval_row, log_evaluation, log_round,
-                                      metrics_columns)
-from dualarm.training.storage import RoundStorage, hindsight_sampler
+from dualarm.training.probes import CurriculumProbes
+from dualarm.training.records import (Timing, episode_rows, eval_row, log_evaluation, log_round,
+                                      metrics_columns, progress_postfix)
+from dualarm.training.rounds import run_round
 from dualarm.training.run_dir import (AVERAGE_EVAL_COLUMNS, EVAL_COLUMNS, CsvLog,
                                       RunPaths, save_checkpoint)
-from dualarm.training.vector import PROBE_SEED_BASE, make_vector_env, seeds_for
+from dualarm.training.storage import RoundStorage, hindsight_sampler
+from dualarm.training.updates import GradientUpdates
+from dualarm.training.vector import make_vector_env, seeds_for
 
 
 class TrainingDiverged(DualarmError, RuntimeError):
@@ -91,24 +92,25 @@ class Trainer:
         task = config.task_config()
         self.agent = DADDPG(config.algo, v.obs_sizes, v.act_sizes, seed=config.seed)
         self.buffer = ReplayBuffer(config.algo.buffer_size, 2, v.obs_size, v.act_size)
-        self.sampler = hindsight_sampler(config, self.buffer, task)
-        self.mirror = TaskMirror(task, constraints) if config.mirror_episodes else None
-        self.batch_shaping = BatchShaping(config, self.agent)
+        self.mirror = TaskMirror(task, constraints) if config.replay.mirror else None
         # Demonstrations are recorded again on resume (the expert, the replays and the physics
         # are deterministic); the normaliser's statistics then come from the checkpoint.
         self.demos = demonstration_buffer(config, v, constraints)
         if self.demos is not None:
             self.agent.normalizer.update(self.demos.data["obs"][:len(self.demos)])
-        self.curriculum = None
-        self.probe_vecs = None       # curriculum_probe's copies, made at the first probe
-        if config.start_curriculum:
-            window = 2 * config.curriculum_probe if config.curriculum_probe else 64
-            self.curriculum = ReverseCurriculum(config.start_probs, config.start_curriculum, window)
+        self.curriculum, self.probes = None, None
+        starts = config.starts
+        if starts.curriculum:
+            window = 2 * starts.probe if starts.probe else 64
+            self.curriculum = ReverseCurriculum(starts.probs, starts.curriculum, window)
+            if starts.probe:
+                self.probes = CurriculumProbes(config, constraints, self.curriculum)
         self.rng = np.random.default_rng([config.seed, 1])
         self.exploration = Exploration(config, self.agent, self.rng)
+        self.updates = GradientUpdates(config, self.agent, self.buffer,
+                                       hindsight_sampler(config, self.buffer, task), self.demos, self.rng)
         self.episodes = 0
         self.env_steps = 0
-        self.updates_owed = 0.0
         self.wall_time_s = 0.0
         self.eval_rows = 0
         self.best = (-math.inf, -math.inf)      # (success rate, mean return) of the best eval
@@ -119,9 +121,9 @@ class Trainer:
         #: (collect_s: the episodes, of which act_s choosing actions and store_s storing
         #: transitions, the rest stepping the environments; update_s: gradient updates;
         #: eval_s: evaluations and curriculum probes), and the counts of the same span.
-        self.timing = {"collect_s": 0.0, "act_s": 0.0, "store_s": 0.0, "update_s": 0.0,
-                       "eval_s": 0.0, "updates": 0, "episodes": 0, "env_steps": 0}
-        self.metrics = CsvLog(paths.metrics, metrics_columns(v, config.uses_start_states))
+        self.timing = Timing(collect_s=0.0, act_s=0.0, store_s=0.0, update_s=0.0, eval_s=0.0,
+                             updates=0, episodes=0, env_steps=0)
+        self.metrics = CsvLog(paths.metrics, metrics_columns(v, config.starts.later))
         # with policy_average, the averaged actors are evaluated beside the run's own
         self.eval_average = config.algo.policy_average > 0 and config.algo.eval_actor != "average"
         columns = list(EVAL_COLUMNS) + (list(AVERAGE_EVAL_COLUMNS) if self.eval_average else [])
@@ -199,13 +201,13 @@ class Trainer:
                 bar.update(len(rows))
                 evaluated = self._crossed(before, c.eval_every) or self.episodes >= c.episodes
                 if self.eval_vec is not None and evaluated:
-                    t = time.perf_counter()
-                    self._evaluate(started)
-                    if c.curriculum_probe:
-                        self._probe_curriculum()
-                    self.timing["eval_s"] += time.perf_counter() - t
+                    with self.timing.part("eval_s"):
+                        self._evaluate(started)
+                        if self.probes is not None:
+                            self.probes.run(self.agent, self.episodes, self._writer)
                 self.wall_time_s = time.perf_counter() - started
-                bar.set_postfix(self._postfix(), refresh=False)
+                bar.set_postfix(progress_postfix(self.recent_success, self.recent_return, self.last_eval),
+                                refresh=False)
                 due = (time.perf_counter() - last_checkpoint >= 60 * c.checkpoint_minutes
                        or self._crossed(before, c.checkpoint_every) or evaluated)
                 if due or self.episodes >= c.episodes:
@@ -228,35 +230,33 @@ class Trainer:
         if self.curriculum is not None:      # this round's starts, from the episodes so far
             v.set_start_probs(self.curriculum.probs())
         timing = self.timing
-        collect_start = time.perf_counter()
+        storage = RoundStorage(self.buffer, self.mirror, c.replay.her_share > 0, n)
 
         def act(obs):
-            t = time.perf_counter()
-            actions = self.exploration.act(obs, self.env_steps)
-            timing["act_s"] += time.perf_counter() - t
-            return actions
-
-        storage = RoundStorage(self.buffer, self.mirror, c.her_share > 0, n)
+            with timing.part("act_s"):
+                return self.exploration.act(obs, self.env_steps)
 
         def store(obs, actions, step, live):
-            t = time.perf_counter()
-            storage.store(obs, actions, step, live)
-            self.env_steps += len(live)
-            timing["store_s"] += time.perf_counter() - t
+            with timing.part("store_s"):
+                storage.store(obs, actions, step, live)
+                self.env_steps += len(live)
 
-        r = run_round(v, seeds_for(c.seed, self.episodes, n), act, store)
-        t = time.perf_counter()
-        starts = v.starts()[:n] if c.uses_start_states else None
-        if self.curriculum is not None and not c.curriculum_probe:
-            self.curriculum.record(starts, r.success)
-        seen = storage.finish(r.first_obs)
+        with timing.part("collect_s"):
+            r = run_round(v, seeds_for(c.seed, self.episodes, n), act, store)
+        with timing.part("store_s"):
+            starts = v.starts()[:n] if c.starts.later else None
+            if self.curriculum is not None and self.probes is None:
+                self.curriculum.record(starts, r.success)
+            agent.normalizer.update(storage.finish(r.first_obs))   # what the critics are shown
         round_steps = int(r.steps.sum())
-        agent.normalizer.update(seen)            # the statistics of what the critics are shown
-        timing["store_s"] += time.perf_counter() - t
-        timing["collect_s"] += t - collect_start
-        t = time.perf_counter()
-        losses = self._update(round_steps)
-        timing["update_s"] += time.perf_counter() - t
+        with timing.part("update_s"):
+            try:
+                losses = self.updates.run(self.env_steps, round_steps)
+            except NonFiniteLoss as exc:
+                raise TrainingDiverged(
+                    f"training stopped in the round after episode {self.episodes}: {exc}. The "
+                    f"last good checkpoint is kept in {self.paths.latest}; lower the learning "
+                    "rates or the reward scale, or set grad_clip, and resume") from None
         timing["updates"] += len(losses)
         wall = time.perf_counter() - started
         timing["episodes"] += n
@@ -266,52 +266,6 @@ class Trainer:
         self.recent_success.extend(bool(x) for x in r.success[:n])
         self.recent_return.extend(float(x) for x in r.returns[:n].sum(axis=1))
         return rows, losses
-
-    def _update(self, round_steps: int) -> list[dict]:
-        """The round's share of gradient updates (none during warm-up)."""
-        a = self.config.algo
-        if self.env_steps < a.warmup_steps or len(self.buffer) < a.batch_size:
-            return []
-        self.updates_owed += a.updates_per_step * round_steps
-        count = int(self.updates_owed)
-        self.updates_owed -= count
-        losses = []
-        demo_rows = a.demo_batch_size if self.demos is not None else 0
-        for _ in range(count):
-            batch = self.sampler.sample(self.rng, a.batch_size)
-            if demo_rows:
-                demos = self.demos.sample(self.rng, demo_rows)
-                batch = {k: torch.cat([batch[k], demos[k]]) for k in batch}
-            losses.append(self._apply(batch, demo_rows))
-        return losses
-
-    def _apply(self, batch: dict, demo_rows: int) -> dict:
-        """One update of the agent on ``batch``, with the trainer's penalty weights and shaping."""
-        self.batch_shaping.apply(batch)
-        try:
-            return self.agent.update(batch, demo_rows)
-        except NonFiniteLoss as exc:
-            raise TrainingDiverged(
-                f"training stopped in the round after episode {self.episodes}: {exc}. "
-                f"The last good checkpoint is kept in {self.paths.latest}; lower the "
-                "learning rates or the reward scale, or set grad_clip, and resume") from None
-
-    def _probe_curriculum(self) -> None:
-        """Deterministic episodes from each later start class, recorded by the curriculum
-        (``TrainConfig.curriculum_probe``); seeds of their own, so training is not disturbed.
-        They act with the online actors whatever ``eval_actor`` is: the curriculum follows
-        the learner, and which actors are the run's policy does not change its training."""
-        c = self.config
-        if self.probe_vecs is None:
-            n = min(c.num_envs, c.curriculum_probe)
-            self.probe_vecs = {k: make_vector_env(c, n, constraints=self.vec.batch.constraints, start=k)
-                               for k in range(1, len(START_CLASSES))}
-        for k, vec in self.probe_vecs.items():
-            seed_base = int(np.random.SeedSequence([PROBE_SEED_BASE, k, self.episodes]).generate_state(1)[0])
-            result = evaluate(lambda o: self.agent.act(o, actors="online"), vec, c.curriculum_probe,
-                              seed_base)
-            self.curriculum.record(np.full((c.curriculum_probe, 2), k), result.success)
-            self._writer.add_scalar(f"curriculum/probe_{START_CLASSES[k]}", result.success_rate, self.episodes)
 
     def _evaluate(self, started: float) -> None:
         c = self.config
@@ -332,13 +286,6 @@ class Trainer:
             save_checkpoint(self.paths.best, {"policy": self.agent.policy_state_dict(),
                                               "config": self.stored_config().to_dict(),
                                               "eval": self.last_eval})
-
-    def _postfix(self) -> dict:
-        post = {"succ100": f"{np.mean(self.recent_success):.2f}",
-                "ret100": f"{np.mean(self.recent_return):.1f}"}
-        if self.last_eval is not None:
-            post["eval"] = f"{self.last_eval['success_rate']:.2f}"
-        return post
 
     # ---------------------------------------------------------- checkpoints
     def save(self) -> None:

@@ -1,21 +1,24 @@
 """What a run records as it goes: a metrics.csv row per episode, an eval.csv row per
-evaluation, and the TensorBoard scalars beside them (``events/``)."""
+evaluation, the TensorBoard scalars beside them (``events/``), and where the time went."""
 
 from __future__ import annotations
+
+import time
+from contextlib import contextmanager
 
 import numpy as np
 
 from dualarm.training.curriculum import START_CLASSES
 
 
-def metrics_columns(vec, uses_start_states: bool) -> list[str]:
+def metrics_columns(vec, later_starts: bool) -> list[str]:
     """metrics.csv's columns for episodes of ``vec`` (its agents, sub-tasks and reward terms);
-    with ``uses_start_states``, the sub-task each arm began at."""
+    with ``later_starts``, the sub-task each arm began at."""
     columns = ["episode", "env_steps", "wall_time_s", "steps"]
     columns += [f"return_{a}" for a in vec.agents] + ["return_total", "success"]
     if vec.has_subtasks:
         columns += [f"subtask_{a}" for a in vec.agents]
-    if uses_start_states:
+    if later_starts:
         columns += [f"start_{a}" for a in vec.agents]
     columns += [f"{t}_{a}" for t in vec.term_names for a in vec.agents]
     return columns
@@ -85,3 +88,26 @@ def log_evaluation(writer, result, episodes: int, average=None) -> None:
         writer.add_scalar("eval/average_success_rate", average.success_rate, episodes)
     writer.add_scalar("eval/success_rate", result.success_rate, episodes)
     writer.add_scalar("eval/return_mean", result.mean_return, episodes)
+
+
+class Timing(dict):
+    """Seconds by part of a round, and counts, since the process started training
+    (``Trainer.timing``; ``benchmarks/train_speed.py`` reads it)."""
+
+    @contextmanager
+    def part(self, name: str):
+        """Add the seconds the ``with`` block takes to ``self[name]``."""
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self[name] += time.perf_counter() - start
+
+
+def progress_postfix(recent_success, recent_return, last_eval: dict | None) -> dict:
+    """The progress bar's figures: success and return over the last 100 episodes, and the
+    last evaluation's success."""
+    post = {"succ100": f"{np.mean(recent_success):.2f}", "ret100": f"{np.mean(recent_return):.1f}"}
+    if last_eval is not None:
+        post["eval"] = f"{last_eval['success_rate']:.2f}"
+    return post

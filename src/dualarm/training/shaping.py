@@ -1,6 +1,6 @@
 """What the trainer adds to every update's batch beyond the environment's rewards: the action
-penalty's weight by region (``far_action_l2``) and potential-based shaping (``approach_shaping``,
-``carry_shaping``; Ng et al. 1999), both read from the raw observations."""
+penalty's weight by region (``near_box.far_action_l2``) and potential-based shaping
+(``shaping.approach``, ``shaping.carry``; Ng et al. 1999), both read from the raw observations."""
 
 from __future__ import annotations
 
@@ -23,16 +23,16 @@ def grip_to_box_distance(obs, rel_columns: slice):
 
 
 def approach_potential(obs, rel_columns: slice, k: float):
-    """``approach_shaping``'s potential phi(s) = -k x each arm's grip-to-box distance (m),
+    """``shaping.approach``'s potential phi(s) = -k x each arm's grip-to-box distance (m),
     (..., A), from raw observations (..., A, O), numpy or torch. In the learner's reward units."""
     return -k * grip_to_box_distance(obs, rel_columns)
 
 
 def shaping_potential(config: TrainConfig):
     """The run's potential phi(obs) -> (..., A) for raw observations (..., A, O), numpy or
-    torch, in the learner's reward units: -``approach_shaping`` x the grip-to-box distance
-    - ``carry_shaping`` x the box-to-target distance (m). None when both are 0."""
-    approach, carry = config.approach_shaping, config.carry_shaping
+    torch, in the learner's reward units: -``shaping.approach`` x the grip-to-box distance
+    - ``shaping.carry`` x the box-to-target distance (m). None when both are 0."""
+    approach, carry = config.shaping.approach, config.shaping.carry
     if approach == 0 and carry == 0:
         return None
     task = config.task_config()
@@ -59,14 +59,15 @@ class BatchShaping:
         self.config, self.agent = config, agent
         self.potential = shaping_potential(config)
         self.rel_columns = (box_offset_columns(config.task_config())
-                            if config.far_action_l2 is not None else None)
+                            if config.near_box.far_action_l2 is not None else None)
 
     def penalty_weight(self, obs: torch.Tensor) -> torch.Tensor:
         """The action penalty's weight per sample and arm, (B, A), from raw observations
-        (B, A, O): ``far_action_l2`` where the grip site is more than ``near_box_radius`` m
+        (B, A, O): ``near_box.far_action_l2`` where the grip site is more than ``near_box.radius`` m
         from its box, the learner's ``action_l2`` within it."""
-        far = grip_to_box_distance(obs, self.rel_columns) > self.config.near_box_radius
-        return torch.where(far, self.config.far_action_l2, self.agent.action_l2)
+        near_box = self.config.near_box
+        far = grip_to_box_distance(obs, self.rel_columns) > near_box.radius
+        return torch.where(far, near_box.far_action_l2, self.agent.action_l2)
 
     def shaping(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
         """The potential-based shaping term per sample and arm, (B, A), in the learner's

@@ -1,5 +1,5 @@
 """One round's transitions into the replay buffer: step by step, or each episode whole (what
-hindsight relabelling needs), each also as its mirror image with ``mirror_episodes``; and the
+hindsight relabelling needs), each also as its mirror image with ``replay.mirror``; and the
 observations the normaliser is then updated with."""
 
 from __future__ import annotations
@@ -13,19 +13,20 @@ from dualarm.training.relabel import ReachRelabeller, TargetRelabeller
 
 def hindsight_sampler(config, buffer: ReplayBuffer, task):
     """What batches are drawn through: ``buffer`` itself, or a ``HindsightSampler`` over it
-    with the config's hindsight targets (``her_share``) and recombination of the two arms'
-    episodes (``recombine_share``), the goals being the task's (reach or full)."""
-    if not (config.her_share > 0 or config.recombine_share > 0):
+    with the config's hindsight targets (``replay.her_share``) and recombination of the two
+    arms' episodes (``replay.recombine_share``), the goals being the task's (reach or full)."""
+    replay = config.replay
+    if not (replay.her_share > 0 or replay.recombine_share > 0):
         return buffer
     achieved = relabel = recombine = None
     goals = ReachRelabeller if task.success_at == "reach" else TargetRelabeller
     relabeller = goals(task, task.observes_joint_angles)
-    if config.her_share > 0:
+    if replay.her_share > 0:
         achieved, relabel = relabeller.achieved, relabeller.relabel
-    if config.recombine_share > 0:         # the full task's (TrainConfig checks it)
+    if replay.recombine_share > 0:         # the full task's (TrainConfig checks it)
         recombine = relabeller.recombine
-    return HindsightSampler(buffer, achieved, relabel, config.her_share, recombine,
-                            config.recombine_share)
+    return HindsightSampler(buffer, achieved, relabel, replay.her_share, recombine,
+                            replay.recombine_share)
 
 
 class RoundStorage:

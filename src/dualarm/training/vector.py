@@ -16,6 +16,7 @@ from typing import Callable
 import gymnasium
 import numpy as np
 
+from dualarm.envs.starts import NORMAL_START, StartDistribution
 from dualarm.task import ARMS
 from dualarm.training.config import TrainConfig
 from dualarm.training.curriculum import START_CLASSES
@@ -75,18 +76,17 @@ class VectorEnv:
 
 
 class BaxterVector(VectorEnv):
-    """``num_envs`` copies of the Baxter reach-grasp-align task (``BaxterBatch``; ``start_probs``
-    draws each arm's starting sub-task, for training curricula)."""
+    """``num_envs`` copies of the Baxter reach-grasp-align task (``BaxterBatch``; ``starts``, a
+    ``StartDistribution``, draws each arm's starting sub-task, for training curricula)."""
 
     term_names = ("distance", "guide", "goal", "coordinate")
     has_subtasks = True
 
-    def __init__(self, config, constraints=None, num_envs: int = 1, start_probs=None,
-                 approach_starts: bool = False):
+    def __init__(self, config, constraints=None, num_envs: int = 1,
+                 starts: StartDistribution = NORMAL_START):
         from dualarm.envs.baxter import BaxterBatch
 
-        self.batch = BaxterBatch(config, constraints, num_envs, start_probs=start_probs,
-                                 approach_starts=approach_starts)
+        self.batch = BaxterBatch(config, constraints, num_envs, starts=starts)
         self.num_envs = num_envs
         self.agents = ARMS
         self.obs_sizes = (self.batch.obs_size,) * 2
@@ -201,7 +201,7 @@ def seeds_for(base: int, first: int, count: int) -> list[int]:
 EVAL_SEED_BASE = 2_147_483_647
 """Evaluation episodes use ``seeds_for(EVAL_SEED_BASE, 0, N)``: the same set for every run."""
 PROBE_SEED_BASE = 2_147_483_629
-"""Curriculum probes (``TrainConfig.curriculum_probe``) draw their placements from this base,
+"""Curriculum probes (``TrainConfig.starts.probe``) draw their placements from this base,
 the start class and the episode count: fresh placements at every probe, none shared with
 training or evaluation."""
 
@@ -213,7 +213,7 @@ def make_vector_env(config: TrainConfig, num_envs: int,
 
     ``constraints``: the run's ``ConstraintSet`` if already loaded (else read from the config).
     ``training``: the copies that collect training episodes, which start as
-    ``config.start_probs`` says; otherwise (evaluation) every episode starts normally, or,
+    ``config.starts`` says; otherwise (evaluation) every episode starts normally, or,
     with ``start`` k > 0, with both arms at sub-task ``START_CLASSES[k]`` (curriculum probes,
     ``dualarm eval --start``).
     """
@@ -221,8 +221,7 @@ def make_vector_env(config: TrainConfig, num_envs: int,
         return ParallelEnvVector(make_env, num_envs)
     if constraints is None:
         constraints = config.load_constraints()
-    probs = config.start_probs if training else None
+    starts = config.starts.distribution() if training else NORMAL_START
     if start:
-        probs = tuple(float(k == start) for k in range(len(START_CLASSES)))
-    return BaxterVector(config.task_config(), constraints, num_envs, probs,
-                        approach_starts=training and config.approach_starts)
+        starts = StartDistribution(tuple(float(k == start) for k in range(len(START_CLASSES))))
+    return BaxterVector(config.task_config(), constraints, num_envs, starts)
