@@ -105,12 +105,32 @@ def test_conflicting_arguments_name_the_field_and_change_nothing(local, base_yam
     assert "constraints_dir" in capsys.readouterr().err
     assert main(["compare", "--seeds", "0,x", "-o", str(out)]) == 2
     assert "--seeds" in capsys.readouterr().err
+    assert main(["compare", "--stop-at", "0.9", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "'stop_at' is None" in err and "0.9 in --stop-at" in err
     assert (out / "comparison.yaml").read_bytes() == before
     # the same arguments again: nothing to train, nothing rewritten but the manifest
     runs = {p.name: snapshot(p) for p in (out / "runs").iterdir()}
     assert main(["compare", "--config", str(base_yaml), "-o", str(out)]) == 0
     assert {p.name: snapshot(p) for p in (out / "runs").iterdir()} == runs
     assert "6 already finished" in capsys.readouterr().out
+
+
+def test_a_run_that_reached_its_stop_is_finished_whatever_the_budget(tmp_path):
+    """``--stop-at`` goes into every run's config; a run whose done marker says it stopped at
+    its target is finished even below the comparison's (or a larger) episodes."""
+    from dualarm.experiments.compare import CompareRequest, prepare
+
+    comparison = prepare(tmp_path / "cmp", CompareRequest(conditions=("none",), seeds=(0,),
+                                                          episodes=50, stop_at=0.85))
+    assert comparison.base.stop_at == 0.85 and comparison.run_config("none", 0).stop_at == 0.85
+    run = tmp_path / "cmp" / "runs" / "none-seed0"
+    run.mkdir(parents=True)
+    comparison.run_config("none", 0).save(run / "config.yaml")
+    (run / "done.yaml").write_text("episodes: 32\nstopped: true\n")
+    assert run_state(run, 50) == run_state(run, 5000) == "finished"
+    (run / "done.yaml").write_text("episodes: 32\nstopped: false\n")
+    assert run_state(run, 50) == "partial"
 
 
 def test_constraints_dir_is_copied_and_a_changed_file_conflicts(tmp_path):

@@ -57,12 +57,14 @@ def test_pipeline_stops_at_the_failing_step_and_names_it(tmp_path, capsys):
 def test_pipeline_defaults_fill_a_new_comparison_and_leave_an_existing_one_alone(tmp_path):
     from dualarm.demos.formats import DEFAULT_DEMO_DIR
     from dualarm.experiments.compare import CompareRequest, prepare
-    from dualarm.experiments.pipeline import (DEFAULT_EPISODES, DEFAULT_SEEDS, pipeline_request,
-                                              planned_grid)
+    from dualarm.experiments.pipeline import (DEFAULT_EPISODES, DEFAULT_SEEDS, DEFAULT_STOP_AT,
+                                              pipeline_request, planned_grid)
 
     out = tmp_path / "pipe"
     new = pipeline_request(out, CompareRequest())
     assert (new.seeds, new.episodes) == (DEFAULT_SEEDS, DEFAULT_EPISODES) == ((0,), 6000)
+    assert new.stop_at == DEFAULT_STOP_AT == 0.85              # each run ends at the target
+    assert pipeline_request(out, CompareRequest(stop_at="none")).stop_at == "none"
     assert planned_grid(out, new) == (("none", "single", "multi", "demos"), (0,))
     assert new.demos_dir == DEFAULT_DEMO_DIR                   # the recordings of the constraints
     plain = tmp_path / "plain"                                 # recordings without their scene
@@ -74,6 +76,7 @@ def test_pipeline_defaults_fill_a_new_comparison_and_leave_an_existing_one_alone
     from dualarm.training import TrainConfig
     with_base = pipeline_request(out, CompareRequest(base=TrainConfig.paper().with_(episodes=40)))
     assert (with_base.seeds, with_base.episodes) == ((0,), None)     # the base's 40 stand
+    assert with_base.stop_at is None                                 # ... and its stop_at
     prepare(out, CompareRequest(conditions=("none",), seeds=(1, 2), episodes=10000))
     # an existing comparison keeps its grid and budget (6000 would shorten its runs)
     assert pipeline_request(out, CompareRequest()) == CompareRequest()

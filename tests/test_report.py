@@ -489,3 +489,28 @@ def test_findings_name_the_condition_that_did_not_learn(tmp_path):
     assert lines[0].startswith("Reached success 0.85: multi median")
     assert f"Not reached: single (0 of 2 seeds in {N:,} episodes)" in lines[0]
     assert lines[1] == "multi/single: single did not reach success 0.85 in most seeds (paper: 0.77)."
+
+
+def test_runs_that_stopped_at_their_target_are_done_not_partial(tmp_path):
+    """A run that ended at the evaluation reaching its ``stop_at`` is done: no "partial" note,
+    and the other seeds of its condition are read to their own ends, not cut to its length
+    (a seed that stopped at 300 must not make a seed that reached it at 500 look censored)."""
+    e = np.arange(1, 601)
+    stop = {"starts": {"probs": (0.2, 0.2, 0.6)}, "stop_at": 0.85}
+    write_run(tmp_path, "multi", 0, np.ones(300), np.ones(300), e[:300],
+              [(100, 0.1), (200, 0.5), (300, 0.9)], planned=600, **stop)
+    write_run(tmp_path, "multi", 1, np.ones(500), np.ones(500), e[:500],
+              [(100, 0.1), (300, 0.5), (500, 0.86)], planned=600, **stop)
+    write_run(tmp_path, "multi", 2, np.ones(600), np.ones(600), e,
+              [(200, 0.1), (600, 0.7)], planned=600, **stop)        # never reached it
+    report = build_report(tmp_path, window=50)
+    multi = report.conditions["multi"]
+    assert [r.stopped for r in multi.runs] == [True, True, False]
+    assert not any("partial run" in n for n in report.notes)
+    assert multi.episodes_to_target.values.tolist()[:2] == [300, 500]
+    assert np.isnan(multi.episodes_to_target.values[2])
+    assert multi.max_avg_success.values.tolist() == [0.9, 0.86, 0.7]
+    assert multi.episodes == 300                                   # the curves' common range
+    write_run(tmp_path, "none", 0, np.ones(300), np.ones(300), e[:300], [(300, 0.5)],
+              planned=600, **stop)                                  # below its stop: partial
+    assert any("none-seed0: partial run, 300 of 600" in n for n in build_report(tmp_path).notes)

@@ -36,7 +36,8 @@ def rows(path, drop=("wall_time_s",)):
 @pytest.mark.slow
 def test_daddpg_solves_the_two_point_mass_task(tmp_path):
     """Learning is tested by learning: >= 90% evaluation success (50 fixed episodes) after
-    600 episodes, about 40 s on one core (seeds 0-3 measured: 1.0, 0.96, 1.0, 1.0)."""
+    600 episodes, about 40 s on one core (seeds 0-3 measured: 1.0, 0.96, 1.0, 1.0); with
+    ``stop_at`` the same run ends at its first evaluation that reaches 0.9."""
     config = TrainConfig.paper().with_(condition="none", episodes=600, num_envs=8, eval_every=100,
                          eval_episodes=50, algo=TOY_ALGO, seed=1)
     result = train(config, tmp_path / "run", make_env=TwoPointMassEnv, progress=False)
@@ -48,6 +49,18 @@ def test_daddpg_solves_the_two_point_mass_task(tmp_path):
     assert [int(r["episode"]) for r in metrics] == list(range(1, 601))
     assert (tmp_path / "run" / "checkpoints" / "best_policy.pt").exists()
     assert any(p.name.startswith("events.out.tfevents") for p in (tmp_path / "run" / "events").iterdir())
+    # stop_at: the same run ends after its first evaluation at 0.9, row for row the run above
+    # up to there, and stays ended on resume, whatever the episodes asked for
+    first = next(int(r["episode"]) for r in evals if float(r["success_rate"]) >= 0.9)
+    assert first < 600
+    stopped = train(config.with_(stop_at=0.9), tmp_path / "stop", make_env=TwoPointMassEnv,
+                    progress=False)
+    assert stopped.stopped and stopped.episodes == first and not result.stopped
+    assert rows(tmp_path / "stop" / "metrics.csv") == metrics[:first]
+    again = resume(tmp_path / "stop", episodes=900, make_env=TwoPointMassEnv, progress=False)
+    assert again.stopped and again.episodes == first
+    with pytest.raises(ValueError, match="stop_at .* needs evaluations"):
+        config.with_(stop_at=0.9, eval_every=0)
 
 
 def test_same_seed_gives_identical_baxter_metrics(tmp_path):

@@ -103,6 +103,11 @@ def rate(text: str) -> float:
     return value
 
 
+def stop_rate(text: str) -> float | str:
+    """A run's ``stop_at``: a success rate in (0, 1], or "none" (train every episode)."""
+    return "none" if text.strip().lower() == "none" else rate(text)
+
+
 # ------------------------------------------------------------------ paths
 # Path arguments say what they are by their type, so that one check in `main` (``check_paths``)
 # covers every command: an output is never one of the command's inputs, never another of its

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from dualarm.cli.arguments import InputPath, OutputDir, positive, positive_int
+from dualarm.cli.arguments import InputPath, OutputDir, positive, positive_int, stop_rate
+from dualarm.task import TARGET_SUCCESS
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
@@ -44,11 +45,12 @@ def compare_request(args: argparse.Namespace, constraints_dir=None, demos_dir=No
         episodes=args.episodes,
         base=TrainConfig.load(args.config) if args.config is not None else None,
         base_source=str(args.config),
-        constraints_dir=constraints_dir, demos_dir=demos_dir)
+        constraints_dir=constraints_dir, demos_dir=demos_dir, stop_at=args.stop_at)
 
 
 def grid_options(p: argparse.ArgumentParser, seeds: str = "0,1,2",
-                 workers: str = "the CPU count", conditions: str = "the paper's three") -> None:
+                 workers: str = "the CPU count", conditions: str = "the paper's three",
+                 stop: str = "the --config's, none in the recipe") -> None:
     """The options that say which runs to train and where: shared by compare and pipeline,
     which hands them on to compare (None: the comparison's, or the command's default, which
     ``seeds``, ``workers`` and ``conditions`` name in the help)."""
@@ -66,6 +68,10 @@ def grid_options(p: argparse.ArgumentParser, seeds: str = "0,1,2",
     p.add_argument("--ray-address", metavar="ADDR",
                    help="Ray cluster to submit to, e.g. auto or ray://HOST:10001 (default: start "
                         "a local Ray instance)")
+    p.add_argument("--stop-at", type=stop_rate, metavar="RATE|none",
+                   help=f"end each run after the first evaluation whose success reaches RATE "
+                        f"(TrainConfig.stop_at; the report's target is {TARGET_SUCCESS:g}); none: "
+                        f"every run trains all its episodes (default: {stop}, or the comparison's)")
     p.add_argument("--config", type=InputPath, metavar="BASE.yaml|paper",
                    help="TrainConfig fields for every run, or a preset (as `dualarm train "
                         "--config`); condition, seed and constraints are set per run. Default: "

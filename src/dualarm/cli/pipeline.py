@@ -11,6 +11,7 @@ from dualarm.cli.arguments import InputPath, OutputDir, positive_int
 from dualarm.cli.compare import compare_request, grid_options
 from dualarm.cli.report import print_report
 from dualarm.demos.formats import LABELS_NAME, SCENE_NAME
+from dualarm.task import TARGET_SUCCESS
 
 
 def cmd_pipeline(args: argparse.Namespace) -> int:
@@ -69,7 +70,7 @@ def add_pipeline_command(sub) -> None:
                         "--config's; then the comparison's; a larger value extends the runs)")
     grid_options(p, seeds="0", workers="as many as there are runs, at least the CPU count",
                  conditions="the paper's three and demos where the demonstrations have their "
-                            "scene file")
+                            "scene file", stop=f"{TARGET_SUCCESS:g} for a new comparison")
     p.add_argument("--demos", "--demo-dir", dest="demo_dir", type=InputPath, metavar="DIR",
                    help=f"demonstrations with {LABELS_NAME}, and {SCENE_NAME} for the demos "
                         "condition (default: the shipped ones; --demo-dir is the older spelling)")

@@ -51,6 +51,8 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     curves = plot_run(result.out, trainer.paths.curves)
     line = f"done: {result.episodes} episodes, {result.env_steps} steps, {result.wall_time_s:.0f} s"
+    if result.stopped:
+        line += f" (stopped: evaluation success reached stop_at {trainer.config.stop_at:g})"
     if result.last_eval:
         line += (f"; last evaluation: success {result.last_eval['success_rate']:.2f}, "
                  f"return {result.last_eval['return_mean']:.1f}")

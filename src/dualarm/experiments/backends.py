@@ -142,7 +142,8 @@ def train_run(config: dict, run_dir: str | Path) -> RunOutcome:
         result = trainer.run()
         plot_run(run_dir, paths.curves)
         done = {"episodes": result.episodes, "env_steps": result.env_steps,
-                "wall_time_s": round(result.wall_time_s, 3), "last_eval": result.last_eval}
+                "wall_time_s": round(result.wall_time_s, 3), "last_eval": result.last_eval,
+                "stopped": result.stopped}
         with atomic_open(run_dir / DONE_MARKER) as f:
             f.write(yaml.safe_dump(done, sort_keys=False).encode())
         return RunOutcome(name, result.episodes, time.perf_counter() - started,

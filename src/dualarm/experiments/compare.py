@@ -5,7 +5,8 @@
     DIR/runs/<cond>-seed<s>/     one run directory of ``dualarm train`` per (condition, seed),
                                  plus ``done.yaml`` once its ``run()`` has returned
 
-A run is *finished* when its ``done.yaml`` counts at least the comparison's episodes,
+A run is *finished* when its ``done.yaml`` counts at least the comparison's episodes (or says
+it reached its ``stop_at``),
 *partial* when it holds a ``config.yaml`` (it resumes from its latest checkpoint), and *new*
 otherwise. Running a comparison again skips the finished runs, resumes the partial ones and
 starts the new ones; a larger ``episodes`` makes every run partial again (extended), and new
@@ -61,6 +62,8 @@ class CompareRequest:
         demos_dir: the demonstration folder of the ``demos`` condition (recordings with
             gripper events, labels.csv, scene.csv); asking for it adds that condition. None:
             the shipped set, if the condition is asked for.
+        stop_at: every run ends after the first evaluation that reaches this success rate
+            (``TrainConfig.stop_at``); "none": no run stops early; None: as the base says.
     """
 
     conditions: tuple[str, ...] | None = None
@@ -70,6 +73,13 @@ class CompareRequest:
     base_source: str = "--config"
     constraints_dir: Path | None = None
     demos_dir: Path | None = None
+    stop_at: float | str | None = None
+
+    def with_stop(self, base: TrainConfig | None) -> TrainConfig | None:
+        """``base`` with ``stop_at`` applied (None stays None)."""
+        if base is None or self.stop_at is None:
+            return base
+        return base.with_(stop_at=None if self.stop_at == "none" else float(self.stop_at))
 
 
 @dataclass(frozen=True)
@@ -178,11 +188,11 @@ class CompareResult:
 
 # ------------------------------------------------------------------ state
 def run_state(run_dir: str | Path, episodes: int) -> str:
-    """"finished" (its done marker counts >= ``episodes``), "partial" (it holds a
-    ``config.yaml``: resume it) or "new" (start it)."""
+    """"finished" (its done marker counts >= ``episodes``, or says the run reached its
+    ``stop_at``), "partial" (it holds a ``config.yaml``: resume it) or "new" (start it)."""
     run_dir = Path(run_dir)
     done = read_done(run_dir)
-    if done is not None and done["episodes"] >= episodes:
+    if done is not None and (done["episodes"] >= episodes or done.get("stopped") is True):
         return "finished"
     return "partial" if RunPaths(run_dir).config.exists() else "new"
 
@@ -329,7 +339,7 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
         if runs.is_dir() and any(runs.iterdir()):
             raise InputError(f"{runs} holds runs but {root} has no {MANIFEST}: not a comparison "
                              "directory of this version; choose another -o")
-        base = request.base or TrainConfig()
+        base = request.with_stop(request.base or TrainConfig())
         conditions, seeds = merged_grid(None, request)
         comparison = Comparison(
             root=root, id=secrets.token_hex(8), conditions=conditions, seeds=seeds,
@@ -339,12 +349,15 @@ def prepare(root: str | Path, request: CompareRequest) -> Comparison:
             constraints_dir=given_dir,
             demos_dir=_demos_dir(conditions, request.demos_dir, base))
     else:
-        if request.base is not None:
-            diff = differences(base_dict(existing.base), base_dict(request.base))
+        asked = request.with_stop(request.base or (existing.base if request.stop_at is not None
+                                                   else None))
+        if asked is not None:
+            diff = differences(base_dict(existing.base), base_dict(asked))
             if diff:
                 name, theirs, mine = diff[0]
+                given = "--stop-at" if name == "stop_at" and request.stop_at else request.base_source
                 raise InputError(f"field '{name}' is {theirs!r} in the comparison's base config but "
-                                 f"{mine!r} in {request.base_source} (and {len(diff) - 1} more field(s) "
+                                 f"{mine!r} in {given} (and {len(diff) - 1} more field(s) "
                                  "differ); run it with the same base config or choose another -o",
                                  source=where)
         if request.episodes is not None and request.episodes < existing.episodes:

@@ -43,6 +43,8 @@ class Run:
         notes: remarks on reading it (e.g. an incomplete last row dropped).
         later_starts: training episodes may start at later sub-tasks (``starts.probs``), so
             their success is not the task's from the normal reset (evaluations are).
+        stopped: the run ended by reaching its config's ``stop_at`` at an evaluation: it is
+            done, not partial, with fewer episodes than planned.
     """
 
     path: Path
@@ -56,6 +58,7 @@ class Run:
     eval_success: np.ndarray
     notes: tuple[str, ...] = ()
     later_starts: bool = False
+    stopped: bool = False
 
     @property
     def episodes(self) -> int:
@@ -64,8 +67,9 @@ class Run:
 
     @property
     def partial(self) -> bool:
-        """True when the run logged fewer episodes than its config asks for."""
-        return self.episodes < self.planned_episodes
+        """True when the run logged fewer episodes than its config asks for, and did not end
+        by reaching its ``stop_at``."""
+        return self.episodes < self.planned_episodes and not self.stopped
 
 
 def find_run_dirs(comparison_dir: str | Path, depth: int = 2) -> list[Path]:
@@ -162,13 +166,17 @@ def load_run(run_dir: str | Path, actors: str = "policy") -> Run:
     if off.size:
         raise InputError(f"success must be 0 or 1, got {m['success'][off[0]]:g}",
                          source=str(paths.metrics), row=int(off[0]) + 1, column="success")
+    policy = EVAL_SUCCESS_COLUMNS["policy"]       # the column a run's stop_at reads
+    names = tuple(dict.fromkeys(("episode", column, policy)))
     if paths.eval.is_file():
-        e, eval_notes = _read_columns(paths.eval, ("episode", column))
+        e, eval_notes = _read_columns(paths.eval, names)
         notes += eval_notes
     else:
-        e = {name: np.zeros(0) for name in ("episode", column)}
+        e = {name: np.zeros(0) for name in names}
+    stopped = (config.stop_at is not None and e[policy].size > 0
+               and bool(e[policy][-1] >= config.stop_at))
     return Run(path=paths.root, condition=config.compared_condition, seed=config.seed,
                planned_episodes=config.episodes, wall_time_s=m["wall_time_s"],
                return_total=m["return_total"], success=m["success"],
                eval_episode=e["episode"].astype(int), eval_success=e[column],
-               notes=tuple(notes), later_starts=config.starts.later)
+               notes=tuple(notes), later_starts=config.starts.later, stopped=stopped)

@@ -176,23 +176,27 @@ def summarize_condition(condition: str, runs: list[Run], window: int = 100,
         window: moving-average window, episodes.
         target: success rate of "episodes to target".
     """
-    n = min(r.episodes for r in runs)
+    n = min(r.episodes for r in runs)       # the curves' common range
+    # Each run's quantities are read up to the runs still going's common range, or, for a run
+    # that ended by reaching its stop_at, to its own end (its later episodes were not needed).
+    going = [r.episodes for r in runs if not r.stopped]
+    upto = [r.episodes if r.stopped or not going else min(going) for r in runs]
     # Training success from later starts is not the task's: measure those runs on evaluations.
     on_evals = any(r.later_starts for r in runs)
     ma_return = np.stack([trailing_mean(r.return_total[:n], window)[0] for r in runs])
     ma_success = np.stack([trailing_mean(r.success[:n], window)[0] for r in runs])
-    conv = [convergence(r.return_total[:n], window) for r in runs]
+    conv = [convergence(r.return_total[:h], window) for r, h in zip(runs, upto)]
     conv_time = [r.wall_time_s[c.episode - 1] if c.converged else None for r, c in zip(runs, conv)]
     final_eval = []
-    for r in runs:
-        inside = r.eval_episode <= n
+    for r, h in zip(runs, upto):
+        inside = r.eval_episode <= h
         final_eval.append(r.eval_success[inside][-1] if inside.any() else None)
     common = sorted(set.intersection(*(set(r.eval_episode[r.eval_episode <= n].tolist())
                                        for r in runs)))
     eval_success = np.array([[r.eval_success[r.eval_episode == ep][-1] for ep in common]
                              for r in runs]).reshape(len(runs), len(common))
-    to_target = [_first_evaluation_at(r, n, target) if on_evals
-                 else episodes_to_target(r.success[:n], target, window) for r in runs]
+    to_target = [_first_evaluation_at(r, h, target) if on_evals
+                 else episodes_to_target(r.success[:h], target, window) for r, h in zip(runs, upto)]
     return ConditionSummary(
         condition=condition, runs=runs, episodes=n, ma_return=ma_return, ma_success=ma_success,
         convergence=conv,
@@ -201,8 +205,9 @@ def summarize_condition(condition: str, runs: list[Run], window: int = 100,
                                       for r, e in zip(runs, to_target)]),
         convergence_episode=SeedStat.of([c.episode for c in conv]),
         convergence_time_s=SeedStat.of(conv_time),
-        max_avg_success=SeedStat.of([float(np.max(r.eval_success[r.eval_episode <= n], initial=0.0))
-                                     if on_evals else max_average(r.success[:n], window) for r in runs]),
+        max_avg_success=SeedStat.of([float(np.max(r.eval_success[r.eval_episode <= h], initial=0.0))
+                                     if on_evals else max_average(r.success[:h], window)
+                                     for r, h in zip(runs, upto)]),
         final_eval_success=SeedStat.of(final_eval),
         eval_episode=np.array(common, dtype=int), eval_success=eval_success)
 

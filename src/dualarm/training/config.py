@@ -103,6 +103,9 @@ class TrainConfig:
         num_envs: environment copies stepped together (policy inference is batched).
         eval_every: training episodes between evaluations (0: none).
         eval_episodes: evaluation episodes, deterministic policy, a fixed set of seeds.
+        stop_at: end the run after the first evaluation whose success rate reaches this
+            (for example 0.85, the report's target): the run is then done, and a resume or a
+            larger ``episodes`` trains no further. None: train all ``episodes``.
         checkpoint_every: training episodes between checkpoints (0: only by time and at the end).
         checkpoint_minutes: wall-clock minutes between checkpoints.
         torch_threads: PyTorch intra-op threads (1 gives bit-reproducible runs).
@@ -129,6 +132,7 @@ class TrainConfig:
     num_envs: int = 16
     eval_every: int = 160
     eval_episodes: int = 50
+    stop_at: float | None = None
     checkpoint_every: int = 0
     checkpoint_minutes: float = 2.0
     torch_threads: int = 1
@@ -167,6 +171,10 @@ class TrainConfig:
         for name in ("eval_every", "eval_episodes", "checkpoint_every"):
             if getattr(self, name) < 0:
                 raise InputError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if self.stop_at is not None and not (0 < self.stop_at <= 1 and self.eval_every
+                                             and self.eval_episodes):
+            raise InputError(f"stop_at must be in (0, 1] and needs evaluations (eval_every and "
+                             f"eval_episodes > 0), got {self.stop_at}")
         if self.checkpoint_minutes <= 0:
             raise InputError(f"checkpoint_minutes must be > 0, got {self.checkpoint_minutes}")
         self._check_across_groups()

@@ -49,13 +49,15 @@ class TrainingDiverged(DualarmError, RuntimeError):
 
 @dataclass
 class TrainResult:
-    """Where a run ended: episodes and env steps done, the run directory, the last evaluation."""
+    """Where a run ended: episodes and env steps done, the run directory, the last evaluation,
+    and whether it ended by reaching ``stop_at`` (before ``episodes``)."""
 
     out: Path
     episodes: int
     env_steps: int
     wall_time_s: float
     last_eval: dict | None
+    stopped: bool = False
 
 
 class Trainer:
@@ -192,7 +194,7 @@ class Trainer:
         started = time.perf_counter() - self.wall_time_s
         last_checkpoint = time.perf_counter()
         try:
-            while self.episodes < c.episodes:
+            while self.episodes < c.episodes and not self.reached_stop:
                 before = self.episodes
                 rows, losses = self._round(started)
                 self.metrics.append(rows)
@@ -217,7 +219,14 @@ class Trainer:
             bar.close()
             self._writer.close()
         return TrainResult(self.paths.root, self.episodes, self.env_steps, self.wall_time_s,
-                           self.last_eval)
+                           self.last_eval, stopped=self.reached_stop)
+
+    @property
+    def reached_stop(self) -> bool:
+        """Whether an evaluation reached ``stop_at`` (kept by the checkpoint, so a stopped run
+        stays stopped on resume)."""
+        stop, last = self.config.stop_at, self.last_eval
+        return stop is not None and last is not None and last["success_rate"] >= stop
 
     def _crossed(self, before: int, every: int) -> bool:
         return every > 0 and before // every != self.episodes // every
