@@ -14,7 +14,7 @@ import torch
 from dualarm.demos.formats import DEFAULT_DEMO_DIR
 from dualarm.envs import make_core
 from dualarm.sim_demos.augment import augment
-from dualarm.sim_demos.replay import (DEFAULT_STEPS, FOLLOWING, load_replay_folder,
+from dualarm.sim_demos.replay import (DEFAULT_STEPS, load_replay_folder,
                                       replay_demonstration)
 
 
@@ -26,8 +26,6 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats; the median is printed")
     parser.add_argument("--moved", type=int, default=64,
                         help="moved episodes per repeat (train --demos makes 256)")
-    parser.add_argument("--following", choices=FOLLOWING, default="time",
-                        help="how the hand paths are followed (TrainConfig.demos.following)")
     args = parser.parse_args()
     env = make_core()
     loads, replays, moves, steps, wins = [], [], [], 0, 0
@@ -36,18 +34,17 @@ def main() -> None:
         demos, labels, scenes = load_replay_folder(args.demo_dir, env.config.workspace())
         loads.append(time.perf_counter() - t)
         t = time.perf_counter()
-        results = [replay_demonstration(env, d, labels[d.name], scenes[d.name], steps=args.steps,
-                                        following=args.following) for d in demos]
+        results = [replay_demonstration(env, d, labels[d.name], scenes[d.name], steps=args.steps)
+                   for d in demos]
         replays.append(time.perf_counter() - t)
         steps, wins = sum(r.steps for r in results), sum(r.success for r in results)
         t = time.perf_counter()
-        moved = augment(env, demos, labels, scenes, args.moved, seed=1_000_003, steps=args.steps,
-                        following=args.following)
+        moved = augment(env, demos, labels, scenes, args.moved, seed=1_000_003, steps=args.steps)
         moves.append(time.perf_counter() - t)
     env.close()
     load, replay = sorted(loads)[len(loads) // 2], sorted(replays)[len(replays) // 2]
     print(f"torch {torch.__version__}, {platform.processor() or platform.machine()}; "
-          f"{len(demos)} recordings, K = {args.steps}, following by {args.following}, "
+          f"{len(demos)} recordings, K = {args.steps}, "
           f"median of {args.repeats}")
     print(f"load and map: {load:.2f} s ({1000 * load / len(demos):.0f} ms per recording)")
     print(f"replay: {replay:.2f} s, {steps} steps ({1000 * replay / steps:.2f} ms per step); "

@@ -294,7 +294,8 @@ def test_a_run_config_written_before_the_recipe_was_the_default_reads_as_it_ran(
     old = {k: v for k, v in grouped.items() if k not in ("starts", "replay", "shaping",
                                                          "near_box", "demos", "task")}
     old.update({flat: grouped[group][name] for flat, (group, name) in FLAT_FIELDS.items()
-                if flat not in ("mirror_episodes", "recombine_share")})
+                if flat not in ("mirror_episodes", "recombine_share") and name in grouped[group]})
+    old["demo_following"] = "time"                     # an option that has left since
     old["demos"] = None
     old["algo"] = {k: v for k, v in old["algo"].items() if k not in ("policy_average", "eval_actor")}
     path = tmp_path / "config.yaml"

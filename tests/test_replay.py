@@ -11,10 +11,7 @@ from dualarm.cli.main import main
 from dualarm.demos.formats import DEFAULT_DEMO_DIR
 from dualarm.demos.scene import Scene
 from dualarm.envs import make_core
-from dualarm.envs.rules import observation_layout
-from dualarm.sim_demos.replay import (DEFAULT_STEPS, PathProgress, demonstration_path,
-                                      follow_path, replay_demonstration, retime, task_window,
-                                      track_path)
+from dualarm.sim_demos.replay import DEFAULT_STEPS, replay_demonstration, retime, task_window
 
 
 def test_a_placement_puts_the_boxes_and_targets_where_it_says():
@@ -132,7 +129,8 @@ def test_demos_options_are_checked_and_the_command_turns_them_on(tmp_path):
     drawn = TrainConfig().with_(demos=str(DEFAULT_DEMO_DIR))      # no demonstration rows set
     assert drawn.algo.demo_batch_size == DEMOS_ALGO["demo_batch_size"]
     assert TrainConfig.from_dict(drawn.to_dict()) == drawn
-    algo = TrainConfig().algo.with_(demo_batch_size=8)
+    with pytest.raises(InputError, match="retimed to 40 steps, longer than task.max_episode_steps 30"):
+        TrainConfig().with_(demos=str(DEFAULT_DEMO_DIR), task={"max_episode_steps": 30})
     from dualarm.training.config import DEMOS_EPISODES
     # the recordings are moved to new placements whatever the algo draws (an algo of its own
     # once silently left only the 10 own-scene replays), and as many as asked where asked
@@ -191,50 +189,17 @@ def test_the_shuffled_control_keeps_states_and_actions_but_not_their_pairing():
         TrainConfig().with_(demos={"shuffle": True})
 
 
-def test_phase_following_replays_the_recordings_and_ignores_the_persons_pauses(shipped):
-    """Followed by phase (``track_path``), the shipped recordings succeed at their own scenes
-    (measured: 10 of 10, 23-33 steps, against 36 on average at the person's pace), and the
-    actions depend on where the hands are, not on the time: the same path with a long pause
-    inserted (one point repeated 12 times, which the time-indexed follower waits through)
-    gives the same episode, step for step."""
-    env, demos, labels, scenes = shipped
-    replays = [replay_demonstration(env, d, labels[d.name], scenes[d.name], following="phase")
-               for d in demos]
-    assert sum(r.success for r in replays) >= 8, [(r.name, r.why) for r in replays]
-    timed = [replay_demonstration(env, d, labels[d.name], scenes[d.name]) for d in demos[:3]]
-    assert np.mean([r.steps for r in replays[:3]]) < np.mean([r.steps for r in timed])
+def test_following_by_phase_left_the_code_and_old_files_still_load():
+    """``demo_following`` ("phase": by arc length, at the robot's pace) measured no gain and
+    left the code: files that say "time", its only way now, still load; "phase" is refused,
+    naming the option."""
+    from dualarm.errors import InputError
+    from dualarm.training import TrainConfig
 
-    d = demos[0]
-    path, closed = demonstration_path(env, d, labels[d.name])
-    paused = np.concatenate([path[:15], np.repeat(path[15:16], 12, axis=0), path[15:]])
-    paused_closed = np.concatenate([closed[:15], np.repeat(closed[15:16], 12, axis=0), closed[15:]])
-    plain = track_path(env, d.name, path, closed, scenes[d.name])
-    waited = track_path(env, d.name, paused, paused_closed, scenes[d.name])
-    assert plain.success and waited.steps == plain.steps
-    np.testing.assert_allclose(waited.act, plain.act, atol=1e-6)
-    slow = follow_path(env, d.name, paused[:DEFAULT_STEPS + 1], paused_closed[:DEFAULT_STEPS + 1],
-                       scenes[d.name])
-    assert not np.allclose(slow.act[:20], timed[0].act[:20])           # time-indexed: it waits
-
-
-def test_phase_following_waits_for_the_fingers_before_it_carries_the_box(shipped):
-    """Progress along the path stops at the person's grasp point until the fingers have
-    closed: the arm is never sent past it with open fingers."""
-    env, demos, labels, scenes = shipped
-    d = demos[1]
-    path, closed = demonstration_path(env, d, labels[d.name])
-    r = track_path(env, d.name, path, closed, scenes[d.name])
-    assert r.success
-    box_z = r.obs[:, :, observation_layout(env.config.observes_joint_angles)["object_pos"]][..., 2]      # (S, 2) m
-    for arm in range(2):
-        shut = r.act[:, arm, 3] > 0
-        first_close = int(np.flatnonzero(shut)[0])
-        assert 0 < first_close < r.steps - 1 and shut[first_close:].all()    # closed for good
-        assert not shut[:first_close].any()
-        assert (box_z[:first_close + 1, arm] < box_z[0, arm] + 0.005).all()  # not lifted before
-        assert box_z[-1, arm] > box_z[0, arm] + env.config.lift_height       # carried after
-    with pytest.raises(ValueError, match="following"):
-        replay_demonstration(env, d, labels[d.name], scenes[d.name], following="pace")
+    assert TrainConfig.from_dict({"demo_following": "time"}) == TrainConfig()
+    assert TrainConfig.from_dict({"demos": {"following": "time"}}) == TrainConfig()
+    with pytest.raises(InputError, match="following: 'phase' is no longer an option"):
+        TrainConfig.from_dict({"demos": {"folder": "x", "following": "phase"}})
 
 
 @pytest.mark.slow

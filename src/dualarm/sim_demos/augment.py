@@ -28,7 +28,7 @@ import numpy as np
 from dualarm.demos.labels import DemoLabels
 from dualarm.demos.loading import DemoJoints
 from dualarm.demos.scene import Scene
-from dualarm.sim_demos.replay import (DEFAULT_STEPS, Replay, demonstration_path, follow,
+from dualarm.sim_demos.replay import (DEFAULT_STEPS, Replay, demonstration_path, follow_path,
                                       task_window)
 
 #: Attempts per demonstration wanted before giving up: a yield below 1 / 8 means the
@@ -99,7 +99,7 @@ def random_placement(env, seed: int) -> Scene:
 
 def augment(env, demos: list[DemoJoints], labels: dict[str, DemoLabels],
             scenes: dict[str, Scene], episodes: int, seed: int,
-            steps: int = DEFAULT_STEPS, on_attempt=None, following: str = "time") -> Augmented:
+            steps: int = DEFAULT_STEPS, on_attempt=None) -> Augmented:
     """Up to ``episodes`` successful demonstrations at new placements, from the recordings.
 
     Attempt j places the task at random with seed ``seed + j``, moves recording j mod n to it
@@ -112,7 +112,6 @@ def augment(env, demos: list[DemoJoints], labels: dict[str, DemoLabels],
         demos: the recordings as Baxter joints with gripper events; their ``labels`` and
             ``scenes`` by name.
         on_attempt: called after each attempt with (attempts so far, successes so far).
-        following: how the moved path is followed, "time" or "phase" (``replay.follow``).
     """
     if env.config.control != "cartesian":
         raise ValueError("augmentation follows hand paths in cartesian control")
@@ -130,7 +129,7 @@ def augment(env, demos: list[DemoJoints], labels: dict[str, DemoLabels],
         name = names[j % len(names)]
         (path, closed), windows = moving[name]
         moved = move_path(path, windows, scenes[name], placement)
-        r = follow(env, name, moved, closed, placement, following)
+        r = follow_path(env, name, moved, closed, placement)
         sources.append(name)
         successes.append(r.success)
         if r.success:

@@ -15,9 +15,7 @@ learner's action space, with the rewards the environment computes:
 3. **Follow.** In cartesian control, each step commands each grip site towards the path's next
    point, ``gain`` x the offset in units of the largest step (the scripted expert's rule), and
    the grip closed or open as recorded; after the path, the last point is held to the end of
-   the episode. Or, with ``following="phase"`` (``track_path``), by where each hand is on
-   the path rather than by the time: the same path and gripper events at the robot's pace,
-   each action a function of the state.
+   the episode.
 """
 
 from __future__ import annotations
@@ -29,17 +27,12 @@ import numpy as np
 from dualarm.demos.labels import DemoLabels
 from dualarm.demos.loading import DemoJoints, MappingOptions, load_demo_dir
 from dualarm.demos.scene import Scene, Workspace, demo_scenes
-from dualarm.envs.rules import closed_gap, finger_gap, observation_layout
 from dualarm.task import SUBTASKS
 
 #: Steps of the retimed task window: the expert needs about 25, a learner's episode is 50;
 #: 40 leaves a still hand 5-9 steps to close on its box (the human's grasp phase is a sixth
 #: to a fifth of the task).
 DEFAULT_STEPS = 40
-
-#: How a hand path is followed: "time", one retimed point per step at the person's pace
-#: (``follow_path``); "phase", by arc length from where the grip site is (``track_path``).
-FOLLOWING = ("phase", "time")
 
 
 @dataclass
@@ -136,8 +129,7 @@ def demonstration_path(env, demo: DemoJoints, labels: DemoLabels,
 
 
 def replay_demonstration(env, demo: DemoJoints, labels: DemoLabels, scene: Scene,
-                         steps: int = DEFAULT_STEPS, gain: float = 1.5,
-                         following: str = "time") -> Replay:
+                         steps: int = DEFAULT_STEPS, gain: float = 1.5) -> Replay:
     """Replay one recording at its scene in ``env`` (a ``BaxterReachGraspAlign`` in cartesian
     control; its condition sets the guide term of the rewards).
 
@@ -147,23 +139,11 @@ def replay_demonstration(env, demo: DemoJoints, labels: DemoLabels, scene: Scene
         scene: where its boxes and targets were.
         steps: steps the task window is retimed to (at most the episode's length).
         gain: action per metre of offset, in units of the largest step.
-        following: "time" (``follow_path``) or "phase" (``track_path``).
     """
     if env.config.control != "cartesian":
         raise ValueError("replay follows the hand path in cartesian control")
     path, closed = demonstration_path(env, demo, labels, steps)
-    return follow(env, demo.name, path, closed, scene, following, gain)
-
-
-def follow(env, name: str, path: np.ndarray, closed: np.ndarray, scene: Scene,
-           following: str, gain: float = 1.5) -> Replay:
-    """``follow_path`` (``following`` "time") or ``track_path`` ("phase") of ``path``
-    (K + 1, 2, 3) m with ``closed`` (K + 1, 2) at ``scene``."""
-    if following == "time":
-        return follow_path(env, name, path, closed, scene, gain)
-    if following == "phase":
-        return track_path(env, name, path, closed, scene, gain)
-    raise ValueError(f"following must be one of {FOLLOWING}, got {following!r}")
+    return follow_path(env, demo.name, path, closed, scene, gain)
 
 
 def follow_path(env, name: str, path: np.ndarray, closed: np.ndarray, scene: Scene,
@@ -245,80 +225,3 @@ def in_joint_control(env, replay: Replay, scene: Scene, lag_gain: float = SERVO_
         return np.clip(np.concatenate([delta, grip], axis=1), -1.0, 1.0)
 
     return _episode(env, replay.name, scene, replay.retimed_steps, act, replay.tracking_error)
-
-
-class PathProgress:
-    """One arm's progress along a hand path by arc length, read from where the grip site is
-    (the phase of the path, not the time): a state-feedback rule for following it.
-
-    The path (K + 1, 3) m is cut at its first closed-gripper point (the grasp): before the
-    fingers have closed, progress stops there; once they have, it runs on to the path's end.
-    """
-
-    def __init__(self, path: np.ndarray, closed: np.ndarray):
-        self.path = np.asarray(path, dtype=float)                        # (K + 1, 3)
-        seg = np.linalg.norm(np.diff(self.path, axis=0), axis=1)          # (K,)
-        self.arc = np.concatenate([[0.0], np.cumsum(seg)])                # (K + 1,) m
-        shut = np.flatnonzero(np.asarray(closed, dtype=bool))
-        self.grasp_at = float(self.arc[shut[0]]) if len(shut) else float(self.arc[-1])
-        self.closes = bool(len(shut))
-        self.s = 0.0
-
-    def point(self, s) -> np.ndarray:
-        """The path's points (..., 3) m at arc lengths ``s`` (...,) m (held at the path's ends
-        beyond them)."""
-        return np.stack([np.interp(s, self.arc, self.path[:, j]) for j in range(3)], axis=-1)
-
-    def limit(self, fingers_closed: bool) -> float:
-        """How far along the path (m of arc length) the arm may go: to the grasp until the
-        fingers have closed, then to the end."""
-        return self.arc[-1] if (fingers_closed or not self.closes) else self.grasp_at
-
-    def update(self, grip: np.ndarray, fingers_closed: bool, window: float) -> float:
-        """Advance to the path's nearest point to ``grip`` (3,) m within ``window`` m of
-        arc length ahead (never back), and not past ``limit(fingers_closed)``.
-        Returns the progress, m of arc length."""
-        limit = self.limit(fingers_closed)
-        lo = self.s
-        hi = min(self.s + window, limit)
-        if hi <= lo:
-            self.s = min(max(self.s, lo), limit)
-            return self.s
-        ss = np.linspace(lo, hi, 33)
-        self.s = float(ss[np.argmin(np.linalg.norm(self.point(ss) - grip, axis=1))])
-        return self.s
-
-
-def track_path(env, name: str, path: np.ndarray, closed: np.ndarray, scene: Scene,
-               gain: float = 1.5, lookahead: float | None = None,
-               grasp_radius: float = 0.015) -> Replay:
-    """One episode of ``env`` (cartesian control) at ``scene`` that follows ``path``
-    (K + 1, 2, 3) m by its phase rather than its time: each arm is sent to the path's point
-    ``lookahead`` m of arc length ahead of the point nearest its grip site
-    (``PathProgress``), so its action is a function of where it is, as a policy's is.
-    The gripper closes where the person's closed (the first ``closed`` (K + 1, 2) point),
-    once the grip site is within ``grasp_radius`` m of it; the path beyond waits for the
-    fingers to close. The person's pace is not kept: the arm moves at the largest step."""
-    step = env.config.max_cartesian_step
-    lookahead = step if lookahead is None else lookahead
-    layout = observation_layout(env.config.observes_joint_angles)
-    shut_gap = closed_gap(env.config)
-    arms = [PathProgress(path[:, a], closed[:, a]) for a in range(2)]
-    error = np.zeros(2)
-    command = -np.ones(2)
-
-    def act(k: int, obs: np.ndarray) -> np.ndarray:
-        grip_now = env.grip_pos[0]
-        fingers = finger_gap(np.asarray(obs)[:, layout["fingers"]]) <= shut_gap
-        move = np.zeros((2, 3))
-        for a, arm in enumerate(arms):
-            s = arm.update(grip_now[a], bool(command[a] > 0 and fingers[a]), 3 * step)
-            near = np.linalg.norm(grip_now[a] - arm.point(arm.grasp_at)) < grasp_radius
-            if arm.closes and s >= arm.grasp_at - 1e-9 and near:
-                command[a] = 1.0                  # from now on: the grip closes
-            error[a] = max(error[a], np.linalg.norm(grip_now[a] - arm.point(s)))
-            ahead = arm.point(min(s + lookahead, arm.limit(bool(command[a] > 0 and fingers[a]))))
-            move[a] = gain * (ahead - grip_now[a]) / step
-        return np.clip(np.concatenate([move, command[:, None]], axis=1), -1.0, 1.0)
-
-    return _episode(env, name, scene, len(path) - 1, act, error)

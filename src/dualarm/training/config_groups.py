@@ -191,18 +191,19 @@ class Demos(Settings):
             time before they are stored (the same steps and actions, each paired with another
             step's state), so the demonstrations keep their action statistics but lose what the
             person did where. A speed-up that survives it does not come from the motion.
-        following: how the recordings' hand paths are followed in the simulator: "time", one
-            retimed point per step at the person's pace
-            (``dualarm.sim_demos.replay.follow_path``), or "phase", by arc length from where
-            the grip site is, at the robot's pace (``track_path``).
+
+    The recordings' hand paths are followed one retimed point per step, at the person's pace
+    (``dualarm.sim_demos.replay.follow_path``).
     """
 
     LABEL = "demos"
+    #: Following by phase (arc length from where the grip site is, at the robot's pace)
+    #: measured no gain and left the code (docs/learning-runs.md).
+    REMOVED = {"following": "time"}
 
     folder: str | None = None
     episodes: int = 0
     shuffle: bool = False
-    following: str = "time"
 
     @classmethod
     def upgrade(cls, d, where: str):
@@ -215,9 +216,6 @@ class Demos(Settings):
     def __post_init__(self):
         check_field_types(self)
         _at_least_zero(self, "episodes")
-        from dualarm.sim_demos.replay import FOLLOWING
-        if self.following not in FOLLOWING:
-            raise InputError(f"following must be one of {FOLLOWING}, got {self.following!r}")
         if self.shuffle and self.folder is None:
             raise InputError("shuffle is a control for the recordings: give folder too")
 
@@ -250,7 +248,7 @@ FLAT_FIELDS = {"start_probs": ("starts", "probs"), "start_curriculum": ("starts"
                "far_action_l2": ("near_box", "far_action_l2"),
                "near_random_eps": ("near_box", "random_eps"),
                "demo_episodes": ("demos", "episodes"), "shuffle_demos": ("demos", "shuffle"),
-               "demo_following": ("demos", "following")}
+               "demo_following": ("demos", "following")}     # a removed option: only "time"
 
 
 def nest_flat_fields(d: dict, where: str) -> dict:

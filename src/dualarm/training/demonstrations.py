@@ -88,8 +88,7 @@ def record_recording_replays(config: TrainConfig, constraints, log=None) -> Repl
             if d.grip is None:
                 left_out.append(f"{d.source}: no gripper events (left_grip, right_grip columns)")
                 continue
-            r = replay_demonstration(env, d, labels[d.name], scenes[d.name],
-                                     following=config.demos.following)
+            r = replay_demonstration(env, d, labels[d.name], scenes[d.name])
             if r.success:
                 usable.append(d)
                 r = in_task(r, scenes[d.name])
@@ -100,7 +99,7 @@ def record_recording_replays(config: TrainConfig, constraints, log=None) -> Repl
             replays.append(r)
         if usable and config.demos.episodes:
             moved = augment(env, usable, labels, scenes, config.demos.episodes,
-                            DEMO_SEED_BASE + config.seed, following=config.demos.following)
+                            DEMO_SEED_BASE + config.seed)
             moved_ok = [m for m in (in_task(r, p) for r, p in zip(moved.replays, moved.placements))
                         if m.success]
             replays += moved_ok
