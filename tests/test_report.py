@@ -511,6 +511,7 @@ def test_runs_that_stopped_at_their_target_are_done_not_partial(tmp_path):
     assert np.isnan(multi.episodes_to_target.values[2])
     assert multi.max_avg_success.values.tolist() == [0.9, 0.86, 0.7]
     assert multi.episodes == 300                                   # the curves' common range
+    assert any("reached their stop_at" in n and "multi seed 0 at 300" in n for n in report.notes)
     write_run(tmp_path, "none", 0, np.ones(300), np.ones(300), e[:300], [(300, 0.5)],
               planned=600, **stop)                                  # below its stop: partial
     assert any("none-seed0: partial run, 300 of 600" in n for n in build_report(tmp_path).notes)

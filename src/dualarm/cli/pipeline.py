@@ -60,9 +60,10 @@ def add_pipeline_command(sub) -> None:
                     "(TrainConfig's defaults) unless --config says otherwise. Beside the paper's "
                     "three conditions, the demos condition learns from the recordings "
                     "themselves as demonstrations (with the multi constraints). The defaults "
-                    "(one seed per condition, 6000 episodes, all runs at once) are long enough "
-                    "for every condition to learn; --episodes 10000 --seeds 0,1,2,3,4 is the "
-                    "full reproduction.")
+                    "(one seed per condition, 6000 episodes, all runs at once, each run ending "
+                    "at the evaluation that reaches 0.85 success) are long enough for every "
+                    "condition to learn; --episodes 10000 --seeds 0,1,2,3,4 is the full "
+                    "reproduction.")
     p.add_argument("-o", "--output", type=OutputDir, default=Path("out/pipeline"), metavar="DIR",
                    help="output directory (default: out/pipeline)")
     p.add_argument("--episodes", type=positive_int, metavar="N",

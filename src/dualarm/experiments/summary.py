@@ -288,10 +288,15 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
                      "(starts.probs), so episodes to target success and max success are read from "
                      "the evaluations (deterministic policy, normal reset), not from training "
                      "success; convergence still reads training returns")
-    lengths = {s.episodes for s in conditions.values()}
-    if len(lengths) > 1:
+    stopped = [r for r in runs if r.stopped]
+    if stopped:
+        notes.append("runs that reached their stop_at ended at that evaluation ("
+                     + ", ".join(f"{r.condition} seed {r.seed} at {r.episodes}" for r in stopped)
+                     + "): their curves end there")
+    going = {c: s for c, s in conditions.items() if not all(r.stopped for r in s.runs)}
+    if len({s.episodes for s in going.values()}) > 1:
         notes.append("the conditions cover different episode ranges ("
-                     + ", ".join(f"{c} {s.episodes}" for c, s in conditions.items())
+                     + ", ".join(f"{c} {s.episodes}" for c, s in going.items())
                      + "): a condition cannot reach a criterion beyond its own range")
     ratios = {q: condition_ratios({c: (s.stat(q).mean if s.stat(q).reached else None)
                                    for c, s in conditions.items()})
