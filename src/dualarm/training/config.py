@@ -52,11 +52,14 @@ RECIPE_ALGO = DADDPGConfig(
 
 
 #: The learner's use of demonstrations when ``demos`` is given to a config that draws none:
-#: rows per update from the demonstration buffer, and the weight of Q-filtered behaviour
-#: cloning (Nair et al. 2018) in the actor's loss, on the recipe's value scale (rc = 1).
-DEMOS_ALGO = {"demo_batch_size": 64, "bc_weight": 1.0}
+#: rows per update from the demonstration buffer, the weight of Q-filtered behaviour cloning
+#: (Nair et al. 2018) in the actor's loss on the recipe's value scale (rc = 1), and twice the
+#: recipe's updates per step (with the recordings 0.85 came at a median of 840 episodes instead
+#: of 1,240 over seeds 0-9, sooner in every seed; without them doubling bought nothing;
+#: docs/human-demos, section 7). A config that sets ``algo.demo_batch_size`` sets all three.
+DEMOS_ALGO = {"demo_batch_size": 64, "bc_weight": 1.0, "updates_per_step": 0.5}
 #: ... and the demonstration episodes made from the recordings by moving them to new
-#: placements (``demo_episodes``): 64 scripted-expert episodes were too few, 256 enough.
+#: placements (``demos.episodes``): 64 scripted-expert episodes were too few, 256 enough.
 DEMOS_EPISODES = 256
 
 
