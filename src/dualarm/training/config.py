@@ -257,7 +257,7 @@ class TrainConfig:
     def with_(self, **changes) -> "TrainConfig":
         """A copy with some fields changed (checked as a new config is); a group given as a
         mapping (or ``demos`` as a folder) changes only the fields it names."""
-        for name, kind in {**GROUPS, "algo": DADDPGConfig}.items():
+        for name, kind in SECTIONS.items():
             if name in changes and not isinstance(changes[name], kind):
                 changes[name] = kind.from_dict(changes[name], where=name, base=getattr(self, name))
         return replace(self, **changes)
@@ -284,7 +284,7 @@ class TrainConfig:
         if unknown:
             raise InputError(f"{where}: unknown field(s) {unknown}; known: {sorted(known)}")
         d = merge_layers(base.to_dict(), d)
-        for name, kind in {**GROUPS, "algo": DADDPGConfig}.items():
+        for name, kind in SECTIONS.items():
             d[name] = kind.from_dict(d[name] or {}, where=f"{where}: {name}")
         try:
             return cls(**d)
@@ -350,6 +350,9 @@ class TrainConfig:
 
 #: The named presets, for ``--config NAME`` and ``extends: NAME``.
 PRESETS = ("recipe", "paper")
+
+#: The config's settings objects by field name: the groups and the learner's.
+SECTIONS = {**GROUPS, "algo": DADDPGConfig}
 
 #: Fields whose mappings a file merges key by key into its base's (the rest it replaces).
 MERGED_FIELDS = ("algo", "task", *GROUPS)
@@ -446,6 +449,6 @@ def _check_layer_fields(d: dict, where: str) -> None:
     unknown = sorted(set(d) - known - set(REMOVED_FIELDS) - set(FLAT_FIELDS), key=str)
     if unknown:
         raise InputError(f"{where}: unknown field(s) {unknown}; known: {sorted(known)}")
-    for name, kind in {**GROUPS, "algo": DADDPGConfig}.items():
+    for name, kind in SECTIONS.items():
         if isinstance(d.get(name), dict):
             kind.check_names(d[name], f"{where}: {name}")

@@ -206,12 +206,8 @@ class Demos(Settings):
     shuffle: bool = False
 
     @classmethod
-    def upgrade(cls, d, where: str):
-        return {"folder": d} if d is None or isinstance(d, str) else super().upgrade(d, where)
-
-    @classmethod
     def from_dict(cls, d, where: str = "config", base=None):
-        return super().from_dict(cls.upgrade(d, where), where, base)
+        return super().from_dict(folder_as_mapping(d), where, base)
 
     def __post_init__(self):
         check_field_types(self)
@@ -251,13 +247,18 @@ FLAT_FIELDS = {"start_probs": ("starts", "probs"), "start_curriculum": ("starts"
                "demo_following": ("demos", "following")}     # a removed option: only "time"
 
 
+def folder_as_mapping(value):
+    """``demos`` as a mapping: a bare folder (or None) is short for ``{folder: value}``."""
+    return {"folder": value} if value is None or isinstance(value, str) else value
+
+
 def nest_flat_fields(d: dict, where: str) -> dict:
     """``d`` (one layer of training settings) with its flat-layout options moved into their
     groups, and a bare ``demos: DIR`` as ``demos: {folder: DIR}``; a group given both ways names
     both."""
     d = dict(d)
-    if "demos" in d and (d["demos"] is None or isinstance(d["demos"], str)):
-        d["demos"] = {"folder": d["demos"]}
+    if "demos" in d:
+        d["demos"] = folder_as_mapping(d["demos"])
     for old, (group, name) in FLAT_FIELDS.items():
         if old not in d:
             continue
