@@ -257,13 +257,12 @@ def test_daddpg_learns_the_whole_task_without_demonstrations(tmp_path):
     """Reach, grasp and align from the normal reset, the paper's reward and constants, no
     demonstrations: the recipe (``TrainConfig()``; what `dualarm train` and
     `dualarm pipeline` run), condition multi, seed 0, evaluated with its policy (the averaged
-    actors) on the 50 fixed placements. Measured (docs/recombine-runs, multi-seed0, the recipe
-    with mirrored and recombined replay): 0.85 first at 1,920 episodes, 1.00 at 4,000; in its
-    3 x 5 comparison every run reached 0.85 by 2,720 episodes, and 4,000, the comparison's
-    budget, leaves room for another machine's draw; about 6-8 minutes on one core.
-    It must also keep what it learned: the last evaluation within 0.1 of the best (issue 14's
-    target), read at the comparison's budget: the same run dips to 0.76-0.80 at 5,760-6,000
-    episodes and is back at 0.94 by 6,080 (docs/results)."""
+    actors) on the 50 fixed placements. Measured with the recipe's earlier 0.25 updates per
+    step (docs/recombine-runs, multi-seed0): 0.85 first at 1,920 episodes, 1.00 at 4,000; in
+    its 3 x 5 comparison every run reached 0.85 by 2,720 episodes. At 1.0, the recipe since
+    2026-12-06, seed 0 reaches 0.85 at 640 (docs/human-demos, section 7); 4,000 episodes are
+    about 30 minutes on one core, and whether the run keeps 0.85 that long at 1.0 is what
+    this test measures: the last evaluation within 0.1 of the best (issue 14's target)."""
     config = TrainConfig().with_(condition="multi", episodes=4000, seed=0)
     train(config, tmp_path / "run", progress=False)
     success = [float(r["success_rate"]) for r in rows(tmp_path / "run" / "eval.csv")]

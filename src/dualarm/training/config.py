@@ -38,7 +38,7 @@ REMOVED_FIELDS = {"reach_action_l2": None, "calm_radius": None, "approach_spread
 #: changes. Each value's reason is in docs/learning-runs.md.
 RECIPE_ALGO = DADDPGConfig(
     hidden=(128, 128),         # 4x cheaper than 2 x 256 at no measured loss
-    updates_per_step=0.25,     # half of it learned later; double, no sooner
+    updates_per_step=1.0,      # 0.85 about 3x sooner than 0.25, once replay mirrored and recombined
     reward_scale=0.00025,      # 1 / rc: values in [0, 1], the shaping terms a tie-breaker
     action_l2=0.02,            # within 5 cm of the box and while holding it (far_action_l2 beyond)
     q_clip=1.0,                # targets within the reachable range (HER's clip_return)
@@ -52,12 +52,25 @@ RECIPE_ALGO = DADDPGConfig(
 
 
 #: The learner's use of demonstrations when ``demos`` is given to a config that draws none:
-#: rows per update from the demonstration buffer, the weight of Q-filtered behaviour cloning
-#: (Nair et al. 2018) in the actor's loss on the recipe's value scale (rc = 1), and twice the
-#: recipe's updates per step (with the recordings 0.85 came at a median of 840 episodes instead
-#: of 1,240 over seeds 0-9, sooner in every seed; without them doubling bought nothing;
-#: docs/human-demos, section 7). A config that sets ``algo.demo_batch_size`` sets all three.
-DEMOS_ALGO = {"demo_batch_size": 64, "bc_weight": 1.0, "updates_per_step": 0.5}
+#: rows per update from the demonstration buffer and the weight of Q-filtered behaviour cloning
+#: (Nair et al. 2018) in the actor's loss on the recipe's value scale (rc = 1). The updates per
+#: step are the recipe's, so that the demos condition differs from multi in the demonstrations
+#: alone (from 2026-12-06 to the recipe's change to 1.0 they were raised here, a confound;
+#: docs/human-demos, section 7). ``with_demos_algo`` keeps the values a config chose.
+DEMOS_ALGO = {"demo_batch_size": 64, "bc_weight": 1.0}
+
+
+def with_demos_algo(algo: DADDPGConfig) -> DADDPGConfig:
+    """``algo`` with ``DEMOS_ALGO``'s values in the fields that hold a preset's value (the
+    recipe's or the paper's): a value a config chose (``bc_weight: 3``, say) is
+    kept, where it was once silently replaced. To keep a preset's own value beside the
+    recordings, set ``demo_batch_size`` too: a config that draws demonstration rows gets no
+    DEMOS_ALGO at all."""
+    presets = (RECIPE_ALGO, DADDPGConfig())
+    return algo.with_(**{name: value for name, value in DEMOS_ALGO.items()
+                         if any(getattr(algo, name) == getattr(p, name) for p in presets)})
+
+
 #: ... and the demonstration episodes made from the recordings by moving them to new
 #: placements (``demos.episodes``): 64 scripted-expert episodes were too few, 256 enough.
 DEMOS_EPISODES = 256
@@ -160,7 +173,7 @@ class TrainConfig:
             raise InputError(f"task overrides {unknown} are not supported; allowed: {TASK_OVERRIDES}")
         if self.demos.recordings:
             if self.algo.demo_batch_size == 0:          # the recordings drawn as DEMOS_ALGO says
-                object.__setattr__(self, "algo", self.algo.with_(**DEMOS_ALGO))
+                object.__setattr__(self, "algo", with_demos_algo(self.algo))
             if self.demos.episodes == 0:                # whatever the algo says: they are moved
                 object.__setattr__(self, "demos", self.demos.with_(episodes=DEMOS_EPISODES))
         # an override that gives the task's own default is no override: one config, one value
