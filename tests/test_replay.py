@@ -218,8 +218,8 @@ def test_the_full_task_is_learned_from_the_shipped_recordings(tmp_path):
     (replayed, moved to 256 placements, Q-filtered behaviour cloning, ``DEMOS_ALGO``) reaches
     0.85 evaluation success on the full reach-grasp-align task from the normal reset, and the
     run ends there (``stop_at``). Measured (docs/human-demos, section 7): seeds 0-9 got there at
-    320-560 episodes, seed 0 at 480; the recipe alone needs 1,760-2,560. The budget of 1,200
-    leaves room for another machine's floating point."""
+    320-560 episodes, seed 0 at 480; the recipe alone needs 640-960 (seed 0: 640). The budget
+    of 1,200 leaves room for another machine's floating point."""
     from dualarm.training import TrainConfig, train
 
     config = TrainConfig().with_(demos=str(DEFAULT_DEMO_DIR), episodes=1200, eval_every=80,

@@ -87,9 +87,9 @@ def add_train_command(sub) -> None:
                             "scene.csv; the shipped set is src/dualarm/data/demos): its recordings, "
                             "replayed at their own scenes and moved to the config's demos.episodes "
                             "(default 256) new placements, fill a demonstration buffer with "
-                            "Q-filtered behaviour cloning: 64 rows per update, bc_weight 1 and 1 "
-                            "update per step (DEMOS_ALGO) where the config keeps a preset's "
-                            "values. Default: none, as in the paper")
+                            "Q-filtered behaviour cloning: 64 rows per update and bc_weight 1 "
+                            "(DEMOS_ALGO) where the config keeps a preset's values. Default: "
+                            "none, as in the paper")
     train.add_argument("--resume", type=InputPath, metavar="DIR",
                        help="continue the run in DIR from its last checkpoint")
     train.set_defaults(func=cmd_train)
