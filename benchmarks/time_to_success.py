@@ -16,9 +16,6 @@ the figure is one core's.
 from __future__ import annotations
 
 import argparse
-import csv
-import os
-import platform
 import tempfile
 import time
 from pathlib import Path
@@ -27,19 +24,9 @@ import torch
 
 from dualarm.training.config import TrainConfig
 from dualarm.training.loop import Trainer
+from env_speed import machine   # this folder is on the path when run as a script
 
 SHIPPED_DEMOS = Path(__file__).resolve().parents[1] / "src" / "dualarm" / "data" / "demos"
-
-
-def cpu_name() -> str:
-    """The CPU's model name (Linux), else what platform says."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def main() -> None:
@@ -59,7 +46,7 @@ def main() -> None:
     if not args.no_demos:
         config = config.with_(demos=str(args.demos))
     a = config.algo
-    print(f"{cpu_name()}, {os.cpu_count()} logical CPUs, 1 torch thread, torch {torch.__version__}")
+    print(f"{machine()}; torch {torch.__version__}")
     print(f"seed {args.seed}, demos {'off' if args.no_demos else config.demos.folder} "
           f"({config.demos.episodes} moved), updates/step {a.updates_per_step}, "
           f"batch {a.batch_size} + {a.demo_batch_size} demonstration rows, hidden {a.hidden}")
@@ -73,9 +60,7 @@ def main() -> None:
         finally:
             trainer.close()
         total = time.perf_counter() - start
-        with open(out / "eval.csv", newline="") as f:
-            last = list(csv.DictReader(f))[-1]
-    t = trainer.timing
+    t, last = trainer.timing, result.last_eval
     reached = "reached" if result.stopped else "NOT reached (censored at the budget)"
     print(f"{args.stop_at:.2f} {reached} at episode {last['episode']} "
           f"(evaluation {float(last['success_rate']):.2f}), {t['updates']} updates")
