@@ -200,9 +200,9 @@ def test_the_shuffled_control_keeps_states_and_actions_but_not_their_pairing():
 
 
 def test_following_by_phase_left_the_code_and_old_files_still_load():
-    """``demo_following`` ("phase": by arc length, at the robot's pace) measured no gain and
-    left the code: files that say "time", its only way now, still load; "phase" is refused,
-    naming the option."""
+    """``demo_following`` ("phase": by arc length, at the robot's pace) and ``in_replay`` (the
+    demonstrations copied into the replay) measured no gain and left the code: files that give
+    their remaining value still load; another is refused, naming the option."""
     from dualarm.errors import InputError
     from dualarm.training import TrainConfig
 
@@ -210,6 +210,9 @@ def test_following_by_phase_left_the_code_and_old_files_still_load():
     assert TrainConfig.from_dict({"demos": {"following": "time"}}) == TrainConfig()
     with pytest.raises(InputError, match="following: 'phase' is no longer an option"):
         TrainConfig.from_dict({"demos": {"folder": "x", "following": "phase"}})
+    assert TrainConfig.from_dict({"demos": {"in_replay": False}}) == TrainConfig()
+    with pytest.raises(InputError, match="in_replay: True is no longer an option"):
+        TrainConfig.from_dict({"demos": {"folder": "x", "in_replay": True}})
 
 
 @pytest.mark.slow

@@ -191,24 +191,20 @@ class Demos(Settings):
             time before they are stored (the same steps and actions, each paired with another
             step's state), so the demonstrations keep their action statistics but lose what the
             person did where. A speed-up that survives it does not come from the motion.
-        in_replay: the demonstration episodes also fill the replay buffer before the first
-            episode, whole and each as its mirror image, so that hindsight targets, mirroring
-            and recombination act on them as on the learner's own episodes (Nair et al. 2018
-            relabel their demonstrations too); the demonstration buffer stays as it is.
 
     The recordings' hand paths are followed one retimed point per step, at the person's pace
     (``dualarm.sim_demos.replay.follow_path``).
     """
 
     LABEL = "demos"
-    #: Following by phase (arc length from where the grip site is, at the robot's pace)
-    #: measured no gain and left the code (docs/learning-runs.md).
-    REMOVED = {"following": "time"}
+    #: Following by phase (arc length from where the grip site is, at the robot's pace) and
+    #: the demonstrations copied into the replay measured no gain and left the code
+    #: (docs/learning-runs.md).
+    REMOVED = {"following": "time", "in_replay": False}
 
     folder: str | None = None
     episodes: int = 0
     shuffle: bool = False
-    in_replay: bool = False
 
     @classmethod
     def from_dict(cls, d, where: str = "config", base=None):
@@ -219,9 +215,6 @@ class Demos(Settings):
         _at_least_zero(self, "episodes")
         if self.shuffle and self.folder is None:
             raise InputError("shuffle is a control for the recordings: give folder too")
-        if self.in_replay and self.folder is None:
-            raise InputError("in_replay copies the recordings' episodes into the replay: give "
-                             "folder too")
 
     @property
     def recordings(self) -> bool:

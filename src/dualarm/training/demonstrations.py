@@ -122,6 +122,6 @@ def record_recording_replays(config: TrainConfig, constraints, log=None) -> Repl
                          "(`dualarm demos replay` shows where each stops)", source=str(config.demos.folder))
     rows = sum(len(e["done"]) for e in kept)
     buffer = ReplayBuffer(rows, 2, learner.obs_size, learner.action_size)
-    for e in kept:       # whole episodes: ``left`` marks where each ends (``copy_episodes``)
-        buffer.add_episode(e["obs"], e["act"], e["rew"], e["next_obs"], bool(e["done"][-1]))
+    for e in kept:
+        buffer.add(e["obs"], e["act"], e["rew"], e["next_obs"], e["done"])
     return buffer

@@ -38,7 +38,7 @@ from dualarm.training.records import (Timing, episode_rows, eval_row, log_evalua
 from dualarm.training.rounds import run_round
 from dualarm.training.run_dir import (AVERAGE_EVAL_COLUMNS, EVAL_COLUMNS, CsvLog,
                                       RunPaths, save_checkpoint)
-from dualarm.training.storage import copy_episodes, RoundStorage, hindsight_sampler
+from dualarm.training.storage import RoundStorage, hindsight_sampler
 from dualarm.training.updates import GradientUpdates
 from dualarm.training.vector import make_vector_env, seeds_for
 
@@ -100,10 +100,6 @@ class Trainer:
         self.demos = demonstration_buffer(config, v, constraints)
         if self.demos is not None:
             self.agent.normalizer.update(self.demos.data["obs"][:len(self.demos)])
-            if config.demos.in_replay:      # a checkpoint's buffer replaces them on resume
-                copy_episodes(self.demos, self.buffer, self.mirror)
-                if self.mirror is not None:
-                    self.agent.normalizer.update(self.mirror.obs(self.demos.data["obs"][:len(self.demos)]))
         self.curriculum, self.probes = None, None
         starts = config.starts
         if starts.curriculum:

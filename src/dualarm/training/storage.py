@@ -76,18 +76,3 @@ class RoundStorage:
         if self.mirror is not None:
             seen = np.concatenate([seen, self.mirror.obs(seen)])
         return seen
-
-
-def copy_episodes(source: ReplayBuffer, buffer: ReplayBuffer, mirror) -> None:
-    """Copy the whole episodes of ``source`` (stored with ``add_episode``: ``left`` counts
-    down to 0 at each one's last transition) into ``buffer``, in order, each followed by its
-    mirror image when ``mirror`` is a ``TaskMirror``."""
-    data = source.data
-    start = 0
-    for end in np.flatnonzero(data["left"][:len(source)] == 0):
-        o, u, rew, o2 = (data[k][start:end + 1] for k in ("obs", "act", "rew", "next_obs"))
-        terminated = bool(data["done"][end])
-        buffer.add_episode(o, u, rew, o2, terminated)
-        if mirror is not None:
-            buffer.add_episode(*mirror.episode(o, u, rew, o2), terminated)
-        start = end + 1
