@@ -199,7 +199,7 @@ def test_the_shuffled_control_keeps_states_and_actions_but_not_their_pairing():
         TrainConfig().with_(demos={"shuffle": True})
 
 
-def test_following_by_phase_left_the_code_and_old_files_still_load():
+def test_removed_demos_options_left_the_code_and_old_files_still_load():
     """``demo_following`` ("phase": by arc length, at the robot's pace) and ``in_replay`` (the
     demonstrations copied into the replay) measured no gain and left the code: files that give
     their remaining value still load; another is refused, naming the option."""
