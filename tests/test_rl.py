@@ -168,6 +168,21 @@ def test_agents_learn_independently_from_their_own_rewards():
             assert not torch.allclose(pa[1], pb[1])
 
 
+def test_gradient_clipping_bounds_each_agents_norm():
+    """After an update with a small grad_clip, each agent's gradient norm over each network
+    is the bound; with a large one the gradients are left as they were computed."""
+    def agent_norms(agent, net):
+        grads = [p.grad for p in getattr(agent, net).parameters()]
+        return torch.stack([g[i].pow(2).sum() for g in grads for i in range(2)]).view(-1, 2).sum(0).sqrt()
+
+    clipped, free = small_agent(grad_clip=1e-4), small_agent(grad_clip=1e6)
+    clipped.update(random_batch())
+    free.update(random_batch())
+    for net in ("critic", "actor"):
+        torch.testing.assert_close(agent_norms(clipped, net), torch.full((2,), 1e-4), rtol=1e-3, atol=0)
+        assert (agent_norms(free, net) > 1e-3).all()
+
+
 def test_actor_gradient_ascends_the_critic():
     """Eq. 14: many actor steps against a fixed critic raise Q(s, mu(s))."""
     agent = small_agent(action_l2=0.0)
