@@ -1,6 +1,10 @@
 """DADDPG update speed: updates per second and GFLOP/s, next to this machine's matmul roofline.
 
-Run:  python benchmarks/update_speed.py [--threads 1] [--seconds 3]
+Run:  python benchmarks/update_speed.py [--threads 1] [--seconds 3] [--recipe]
+
+``--recipe`` times the recipe's own learner (``RECIPE_ALGO`` with ``DEMOS_ALGO``'s demonstration
+rows and cloning, as ``dualarm train --demos`` runs it) at its 128 x 128 layers and at 64 x 64,
+instead of the plain-DDPG shapes below.
 
 For each network size and batch size it times ``DADDPG.update`` on random transitions of
 the Baxter task's shapes (2 agents, 29 or 36 observations, 4 actions), counts the matmul
@@ -20,6 +24,7 @@ import torch
 
 from dualarm.rl import DADDPG, DADDPGConfig
 from dualarm.rl.replay import ReplayBuffer
+from dualarm.training.config import DEMOS_ALGO, RECIPE_ALGO
 
 
 def matmul_gflops(m: int, k: int, n: int, seconds: float) -> float:
@@ -62,6 +67,8 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1, help="torch intra-op threads (default 1)")
     parser.add_argument("--seconds", type=float, default=3.0, help="timing per case (default 3)")
     parser.add_argument("--obs", type=int, default=36, help="observation width per agent (default 36)")
+    parser.add_argument("--recipe", action="store_true",
+                        help="the recipe's learner with demonstration rows, 128 x 128 and 64 x 64")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     print(f"torch {torch.__version__}, {args.threads} thread(s), {platform.processor() or platform.machine()}")
@@ -73,8 +80,13 @@ def main() -> None:
              ((256, 256), 256, demos)]
     print(f"{'hidden':>16} {'batch':>5} {'twin':>4} {'demo':>4} {'GFLOP/upd':>9} "
           f"{'ms/upd':>7} {'upd/s':>6} {'GFLOP/s':>7} {'roofline':>8} {'ratio':>5}")
-    for hidden, batch, options in cases:
-        config = DADDPGConfig(hidden=hidden, batch_size=batch, buffer_size=20_000, **options)
+    configs = [DADDPGConfig(hidden=hidden, batch_size=batch, buffer_size=20_000, **options)
+               for hidden, batch, options in cases]
+    if args.recipe:
+        configs = [RECIPE_ALGO.with_(hidden=hidden, buffer_size=20_000, **DEMOS_ALGO)
+                   for hidden in ((128, 128), (64, 64))]
+    for config in configs:
+        hidden, batch = config.hidden, config.batch_size
         flags = [config.twin_critics, config.demo_batch_size > 0]
         dt, flops = time_updates(config, args.obs, args.seconds)
         # the roofline: the matmul rate of the update's hidden layer shape (batch x h @ h x h)
