@@ -80,11 +80,12 @@ def main() -> None:
              ((256, 256), 256, demos)]
     print(f"{'hidden':>16} {'batch':>5} {'twin':>4} {'demo':>4} {'GFLOP/upd':>9} "
           f"{'ms/upd':>7} {'upd/s':>6} {'GFLOP/s':>7} {'roofline':>8} {'ratio':>5}")
-    configs = [DADDPGConfig(hidden=hidden, batch_size=batch, buffer_size=20_000, **options)
-               for hidden, batch, options in cases]
     if args.recipe:
         configs = [RECIPE_ALGO.with_(hidden=hidden, buffer_size=20_000, **DEMOS_ALGO)
                    for hidden in ((128, 128), (64, 64))]
+    else:
+        configs = [DADDPGConfig(hidden=hidden, batch_size=batch, buffer_size=20_000, **options)
+                   for hidden, batch, options in cases]
     for config in configs:
         hidden, batch = config.hidden, config.batch_size
         flags = [config.twin_critics, config.demo_batch_size > 0]
