@@ -233,6 +233,21 @@ def test_shipped_expert_demos_config_trains(tmp_path, capsys):
         assert len(list(csv.DictReader(f))) == 16
 
 
+def test_shipped_reset_starts_config_places_nothing():
+    """configs/reset-starts.yaml is the recipe with every training episode at the normal reset
+    (docs/human-demos, section 7): no placed sub-task starts, no curriculum to move them, no
+    approach starts; the learner's settings stay the recipe's."""
+    from dualarm.training.config import TrainConfig
+
+    config = TrainConfig.load(Path(__file__).resolve().parents[1] / "configs" / "reset-starts.yaml")
+    recipe = TrainConfig.recipe()
+    assert not config.starts.later and config.starts.probs == (1.0, 0.0, 0.0)
+    assert config.starts.curriculum == 0 and not config.starts.approach and config.starts.probe == 0
+    assert recipe.starts.later                      # the one change is the starts
+    assert config.algo == recipe.algo and config.replay == recipe.replay
+    assert config.stop_at == 0.85
+
+
 @pytest.mark.parametrize("name", sorted(p.name for p in (Path(__file__).resolve().parents[1]
                                                          / "configs").glob("*.yaml")))
 def test_every_shipped_config_is_a_valid_train_config(name):
