@@ -407,6 +407,26 @@ def test_runs_with_later_starts_are_measured_on_their_evaluations(tmp_path):
     assert any("read from the evaluations" in n for n in report.notes)
 
 
+def test_runs_that_stop_at_an_evaluation_are_measured_on_their_evaluations(tmp_path):
+    """A run from the normal reset only that ends at the evaluation reaching its stop_at
+    (configs/reset-starts.yaml) has a training success still far below it when it stops: it
+    reached the target at that evaluation, not never. The same run without a stop_at is read
+    from training success, as the paper's Fig. 7 is."""
+    e = np.arange(1, 301)
+    training = (e % 10 == 0).astype(float)                         # 0.1: exploring, from the reset
+    evals = [(100, 0.0), (200, 0.5), (300, 0.9)]
+    write_run(tmp_path / "stops", "none", 0, training, training, e, evals, planned=600,
+              stop_at=0.85)
+    stops = build_report(tmp_path / "stops", window=50)
+    assert stops.conditions["none"].episodes_to_target.values.tolist() == [300]
+    assert stops.conditions["none"].max_avg_success.values.tolist() == [0.9]
+    assert any("stop_at" in n and "read from the evaluations" in n for n in stops.notes)
+    write_run(tmp_path / "full", "none", 0, training, training, e, evals)
+    full = build_report(tmp_path / "full", window=50)
+    assert np.isnan(full.conditions["none"].episodes_to_target.values[0])
+    assert not any("read from the evaluations" in n for n in full.notes)
+
+
 def test_the_averaged_actors_evaluations_are_read_on_request(tmp_path, capsys):
     """`--actor average` reads eval.csv's average_success_rate (the averaged actors, evaluated
     beside the run's policy): episodes to target and max success follow that column, and a

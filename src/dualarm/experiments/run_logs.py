@@ -45,6 +45,7 @@ class Run:
             their success is not the task's from the normal reset (evaluations are).
         stopped: the run ended by reaching its config's ``stop_at`` at an evaluation: it is
             done, not partial, with fewer episodes than planned.
+        stop_at: its config's ``stop_at`` (an evaluation success rate), or None.
     """
 
     path: Path
@@ -59,6 +60,15 @@ class Run:
     notes: tuple[str, ...] = ()
     later_starts: bool = False
     stopped: bool = False
+    stop_at: float | None = None
+
+    @property
+    def measured_on_evals(self) -> bool:
+        """Whether its success is read from its evaluations rather than its training episodes:
+        training episodes that start at later sub-tasks succeed without the task being
+        learned, and a run with a ``stop_at`` ends as soon as an evaluation reaches it, before
+        the noisier training success can."""
+        return self.later_starts or self.stop_at is not None
 
     @property
     def episodes(self) -> int:
@@ -179,4 +189,5 @@ def load_run(run_dir: str | Path, actors: str = "policy") -> Run:
                planned_episodes=config.episodes, wall_time_s=m["wall_time_s"],
                return_total=m["return_total"], success=m["success"],
                eval_episode=e["episode"].astype(int), eval_success=e[column],
-               notes=tuple(notes), later_starts=config.starts.later, stopped=stopped)
+               notes=tuple(notes), later_starts=config.starts.later, stopped=stopped,
+               stop_at=config.stop_at)

@@ -181,8 +181,9 @@ def summarize_condition(condition: str, runs: list[Run], window: int = 100,
     # that ended by reaching its stop_at, to its own end (its later episodes were not needed).
     going = [r.episodes for r in runs if not r.stopped]
     upto = [r.episodes if r.stopped or not going else min(going) for r in runs]
-    # Training success from later starts is not the task's: measure those runs on evaluations.
-    on_evals = any(r.later_starts for r in runs)
+    # Training success from later starts is not the task's, and a run that stops at an
+    # evaluation ends before its training success can show it: measure those on evaluations.
+    on_evals = any(r.measured_on_evals for r in runs)
     ma_return = np.stack([trailing_mean(r.return_total[:n], window)[0] for r in runs])
     ma_success = np.stack([trailing_mean(r.success[:n], window)[0] for r in runs])
     conv = [convergence(r.return_total[:h], window) for r, h in zip(runs, upto)]
@@ -282,11 +283,15 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
         if s.episodes < window:
             notes.append(f"{s.condition}: {s.episodes} episodes, fewer than the {window}-episode "
                          "window: no full-window average yet")
-    later = sorted(c for c, s in conditions.items() if any(r.later_starts for r in s.runs))
-    if later:
-        notes.append(f"{', '.join(later)}: training episodes start at later sub-tasks too "
-                     "(starts.probs), so episodes to target success and max success are read from "
-                     "the evaluations (deterministic policy, normal reset), not from training "
+    on_evals = {c: s for c, s in conditions.items() if any(r.measured_on_evals for r in s.runs)}
+    if on_evals:
+        why = {c: "training episodes start at later sub-tasks too (starts.probs)"
+               if any(r.later_starts for r in s.runs) else
+               "its runs end at the evaluation that reaches their stop_at"
+               for c, s in on_evals.items()}
+        notes.append("; ".join(f"{c}: {w}" for c, w in why.items())
+                     + ": so episodes to target success and max success are read from the "
+                     "evaluations (deterministic policy, normal reset), not from training "
                      "success; convergence still reads training returns")
     stopped = [r for r in runs if r.stopped]
     if stopped:
