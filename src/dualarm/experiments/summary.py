@@ -131,6 +131,13 @@ class ConditionSummary:
         return getattr(self, quantity)
 
 
+def measured_on_evals(runs: list[Run]) -> bool:
+    """Whether a condition's episodes to target and max success are read from its runs'
+    evaluations: one run that needs it (``Run.measured_on_evals``) decides for all, so that a
+    condition's seeds are measured alike."""
+    return any(r.measured_on_evals for r in runs)
+
+
 @dataclass
 class Report:
     """Everything the report shows.
@@ -183,7 +190,7 @@ def summarize_condition(condition: str, runs: list[Run], window: int = 100,
     upto = [r.episodes if r.stopped or not going else min(going) for r in runs]
     # Training success from later starts is not the task's, and a run that stops at an
     # evaluation ends before its training success can show it: measure those on evaluations.
-    on_evals = any(r.measured_on_evals for r in runs)
+    on_evals = measured_on_evals(runs)
     ma_return = np.stack([trailing_mean(r.return_total[:n], window)[0] for r in runs])
     ma_success = np.stack([trailing_mean(r.success[:n], window)[0] for r in runs])
     conv = [convergence(r.return_total[:h], window) for r, h in zip(runs, upto)]
@@ -283,7 +290,7 @@ def build_report(comparison_dir: str | Path, window: int = 100, target: float = 
         if s.episodes < window:
             notes.append(f"{s.condition}: {s.episodes} episodes, fewer than the {window}-episode "
                          "window: no full-window average yet")
-    on_evals = {c: s for c, s in conditions.items() if any(r.measured_on_evals for r in s.runs)}
+    on_evals = {c: s for c, s in conditions.items() if measured_on_evals(s.runs)}
     if on_evals:
         why = {c: "training episodes start at later sub-tasks too (starts.probs)"
                if any(r.later_starts for r in s.runs) else
