@@ -205,7 +205,10 @@ class BaxterBatch:
         mujoco.mj_forward(m, d)
         # Drawn after the placement, so a seed places boxes and targets the same either way.
         starts = self.starts.draw(r)
-        if starts.any() or self.starts.approach:
+        if self.starts.states is not None:
+            if starts.any():
+                self._start_recorded(i, starts, r)
+        elif starts.any() or self.starts.approach:
             self._start_later(i, starts, r)
         self.start_kind[i] = starts
 
@@ -227,6 +230,40 @@ class BaxterBatch:
     def set_start_probs(self, probs) -> None:
         """Change the start probabilities (reach, grasp, align) of the next resets."""
         self.starts = self.starts.with_probs(probs)
+
+    def set_start_states(self, states) -> None:
+        """Take later starts from ``states`` (``RecordedStates``; None: placed ones)."""
+        self.starts = self.starts.with_states(states)
+
+    def arm_states(self, i: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Copy ``i``'s state as ``RecordedStates`` keeps it: each arm's joints, fingers and box
+        pose (2, 16) and finger commands (2, 2)."""
+        d, ix = self.datas[i], self.ix
+        return d.qpos[ix.qpos_gather].copy(), d.ctrl[ix.finger_ctrl].copy()
+
+    def _start_recorded(self, i: int, starts: np.ndarray, rng: np.random.Generator) -> None:
+        """Begin copy ``i`` at a recorded demonstration episode's scene, each arm at a step of it
+        where that arm was at its ``starts`` sub-task (``StartDistribution.states``), at rest;
+        then the same short settle as placed starts."""
+        c, m, d, ix = self.config, self.model, self.datas[i], self.ix
+        bank = self.starts.states
+        e, steps = bank.draw(rng, starts, self.starts.approach)
+        self.box_start_pos[i] = bank.boxes[e]
+        self.target_pos[i] = bank.targets[e]
+        d.mocap_pos[ix.target_mocap] = self.target_pos[i]
+        for arm in range(2):
+            d.qpos[ix.qpos_gather[arm]] = bank.qpos[e, steps[arm], arm]
+            d.ctrl[ix.finger_ctrl[arm]] = bank.fingers[e, steps[arm], arm]
+        d.qvel[:] = 0.0
+        mujoco.mj_kinematics(m, d)
+        if self.cartesian:
+            d.mocap_pos[ix.hand_mocap] = d.site_xpos[ix.grip_site]
+        else:
+            d.ctrl[ix.arm_ctrl] = d.qpos[ix.arm_qpos]
+            self.joint_command[i] = d.qpos[ix.arm_qpos]
+        mujoco.mj_forward(m, d)
+        mujoco.mj_step(m, d, nstep=2 * c.substeps)
+        mujoco.mj_kinematics(m, d)
 
     def _start_later(self, i: int, starts: np.ndarray, rng: np.random.Generator) -> None:
         """Put the arms of copy ``i`` whose ``starts`` entry is 1 or 2 at that sub-task.

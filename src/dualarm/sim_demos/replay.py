@@ -51,6 +51,9 @@ class Replay:
             (S, 2, 4), (S, 2), (S, 2, O), (S,).
         terms: the environment's reward terms by name, each (S, 2).
         joints: (S + 1, 14) rad, Baxter's joint angles after the reset and after each step.
+        states: the episode's scene and states for ``dualarm.envs.starts.RecordedStates``:
+            ``boxes``, ``targets`` (2, 3) m, and after the reset and each step ``qpos``
+            (S + 1, 2, 16), ``fingers`` (S + 1, 2, 2), ``subtask`` (S + 1, 2).
     """
 
     name: str
@@ -66,6 +69,7 @@ class Replay:
     done: np.ndarray = field(repr=False)
     terms: dict = field(default_factory=dict, repr=False)
     joints: np.ndarray | None = field(default=None, repr=False)
+    states: dict | None = field(default=None, repr=False)
 
     @property
     def why(self) -> str:
@@ -178,10 +182,21 @@ def _episode(env, name: str, scene: Scene, retimed_steps: int, act, error: np.nd
     rows = {k: [] for k in ("obs", "act", "rew", "next_obs", "done")}
     terms: dict[str, list] = {}
     joints = [env.joint_angles()]
+    states = {"boxes": env.box_start.copy(), "targets": env.targets.copy(),
+              "qpos": [], "fingers": [], "subtask": []}
+
+    def keep_state(info):
+        qpos, fingers = env.arm_states()
+        states["qpos"].append(qpos)
+        states["fingers"].append(fingers)
+        states["subtask"].append(np.asarray(info["subtask"], dtype=np.int64).copy())
+
+    keep_state(info)
     for k in range(limit):
         action = act(k, obs)
         result = env.step(action)
         joints.append(env.joint_angles())
+        keep_state(result.info)
         if after is not None:
             after(k)
         done = bool(result.terminated)
@@ -196,7 +211,8 @@ def _episode(env, name: str, scene: Scene, retimed_steps: int, act, error: np.nd
     return Replay(name, bool(result.info["is_success"]), len(rows["done"]), retimed_steps,
                   np.asarray(result.info["subtask"]).copy(), error,
                   *(np.stack(rows[k]) for k in ("obs", "act", "rew", "next_obs", "done")),
-                  {term: np.stack(v) for term, v in terms.items()}, np.stack(joints))
+                  {term: np.stack(v) for term, v in terms.items()}, np.stack(joints),
+                  {k: np.stack(v) if isinstance(v, list) else v for k, v in states.items()})
 
 
 #: Joint-control replays command the target plus this much of the joints' lag behind it:

@@ -213,6 +213,9 @@ class TrainConfig:
         elif self.demos.episodes and task.control != "cartesian":
             raise InputError("demos.episodes: the scripted expert demonstrates cartesian control "
                              "only, not task.control 'joint'")
+        if self.demos.starts and not self.starts.later:
+            raise InputError("demos.starts takes the later starts from the recordings: give "
+                             "starts.probs other than (1, 0, 0), for example [0.2, 0.2, 0.6]")
         if self.starts.probe and not self.eval_every:
             raise InputError("starts.probe measures the curriculum at every evaluation: give "
                              "eval_every too")

@@ -191,6 +191,11 @@ class Demos(Settings):
             time before they are stored (the same steps and actions, each paired with another
             step's state), so the demonstrations keep their action statistics but lose what the
             person did where. A speed-up that survives it does not come from the motion.
+        starts: with ``folder``: training episodes that start an arm at a later sub-task begin
+            at a state of one of the successful demonstration episodes, where that arm was at
+            that sub-task (``dualarm.envs.starts.RecordedStates``), instead of a state placed by
+            the simulator: states a robot reaches by replaying the demonstration. Needs
+            ``starts.probs`` other than (1, 0, 0); the curriculum's probes start there too.
 
     The recordings' hand paths are followed one retimed point per step, at the person's pace
     (``dualarm.sim_demos.replay.follow_path``).
@@ -205,6 +210,7 @@ class Demos(Settings):
     folder: str | None = None
     episodes: int = 0
     shuffle: bool = False
+    starts: bool = False
 
     @classmethod
     def from_dict(cls, d, where: str = "config", base=None):
@@ -215,6 +221,9 @@ class Demos(Settings):
         _at_least_zero(self, "episodes")
         if self.shuffle and self.folder is None:
             raise InputError("shuffle is a control for the recordings: give folder too")
+        if self.starts and self.folder is None:
+            raise InputError("starts begins episodes at the recordings' replayed states: give "
+                             "folder too (on the command line, --demos DIR)")
 
     @property
     def recordings(self) -> bool:

@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 
+from dualarm.envs.starts import RecordedStates
 from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import TrainConfig
 from dualarm.training.evaluation import evaluate
@@ -18,16 +19,29 @@ from dualarm.training.vector import VectorEnv
 DEMO_SEED_BASE = 1_000_003
 
 
-def demonstration_buffer(config: TrainConfig, vec: VectorEnv, constraints) -> ReplayBuffer | None:
+def demonstrations(config: TrainConfig, vec: VectorEnv, constraints
+                   ) -> tuple[ReplayBuffer | None, RecordedStates | None]:
     """The run's demonstration buffer: the recordings of ``config.demos.folder``
     (``record_recording_replays``), else ``config.demos.episodes`` of the scripted expert in
-    ``vec`` (``record_expert_demonstrations``), else None."""
+    ``vec`` (``record_expert_demonstrations``), else None; and with ``config.demos.starts``
+    the successful replays' states to start training episodes from, else None."""
     if config.demos.recordings:
-        return record_recording_replays(config, constraints,
-                                        log=lambda line: print(line, file=sys.stderr))
+        replays = successful_replays(config, constraints,
+                                     log=lambda line: print(line, file=sys.stderr))
+        states = recorded_states(replays) if config.demos.starts else None
+        return record_recording_replays(config, constraints, replays=replays), states
     if config.demos.episodes:
-        return record_expert_demonstrations(config, vec)
-    return None
+        return record_expert_demonstrations(config, vec), None
+    return None, None
+
+
+def recorded_states(replays) -> RecordedStates:
+    """The scenes and step-by-step states of successful ``replays`` (``Replay``), to start
+    training episodes from (``StartDistribution.states``): each but its last state, where the
+    episode had already succeeded."""
+    return RecordedStates.from_episodes(
+        [{k: v[:-1] if k in ("qpos", "fingers", "subtask") else v for k, v in r.states.items()}
+         for r in replays])
 
 
 def record_expert_demonstrations(config: TrainConfig, vec: VectorEnv) -> ReplayBuffer:
@@ -52,14 +66,31 @@ def record_expert_demonstrations(config: TrainConfig, vec: VectorEnv) -> ReplayB
     return buffer
 
 
-def record_recording_replays(config: TrainConfig, constraints, log=None) -> ReplayBuffer:
+def record_recording_replays(config: TrainConfig, constraints, log=None,
+                             replays=None) -> ReplayBuffer:
+    """The transitions of ``successful_replays`` (or of ``replays``, those already made), their
+    actions permuted within each episode with ``config.demos.shuffle`` (the control): obs and
+    next_obs (N, 2, O), act (N, 2, U), rew (N, 2), done (N,)."""
+    if replays is None:
+        replays = successful_replays(config, constraints, log)
+    rng = np.random.default_rng([config.seed, 3])
+    kept = [{"obs": r.obs, "act": r.act[rng.permutation(len(r.act))] if config.demos.shuffle else r.act,
+             "rew": r.rew,
+             "next_obs": r.next_obs, "done": r.done} for r in replays]
+    rows = sum(len(e["done"]) for e in kept)
+    buffer = ReplayBuffer(rows, 2, kept[0]["obs"].shape[-1], kept[0]["act"].shape[-1])
+    for e in kept:
+        buffer.add(e["obs"], e["act"], e["rew"], e["next_obs"], e["done"])
+    return buffer
+
+
+def successful_replays(config: TrainConfig, constraints, log=None) -> list:
     """Replay the recordings of ``config.demos.folder`` at their own scenes in the run's task
     (condition, constraints and observation as training's; ``dualarm.sim_demos.replay``; in a
     joint-control task each cartesian replay is done again in joint space, ``in_joint_control``), and
     with ``config.demos.episodes`` moved to that many of the task's random placements
     (``dualarm.sim_demos.augment``, placements seeded from ``DEMO_SEED_BASE`` + the run's
-    seed), and return the transitions of those that succeed (their actions permuted within each
-    episode with ``config.demos.shuffle``, the control).
+    seed), and return those that succeed (``Replay``, the recordings' own first).
 
     Args:
         log: called with one line per recording left out (its replay did not succeed).
@@ -113,15 +144,7 @@ def record_recording_replays(config: TrainConfig, constraints, log=None) -> Repl
     for line in left_out:
         if log is not None:
             log(f"demos: left out {line}")
-    rng = np.random.default_rng([config.seed, 3])
-    kept = [{"obs": r.obs, "act": r.act[rng.permutation(len(r.act))] if config.demos.shuffle else r.act,
-             "rew": r.rew,
-             "next_obs": r.next_obs, "done": r.done} for r in replays]
-    if not kept:
+    if not replays:
         raise InputError(f"none of the {len(demos)} recordings replays to success at its scene "
                          "(`dualarm demos replay` shows where each stops)", source=str(config.demos.folder))
-    rows = sum(len(e["done"]) for e in kept)
-    buffer = ReplayBuffer(rows, 2, learner.obs_size, learner.action_size)
-    for e in kept:
-        buffer.add(e["obs"], e["act"], e["rew"], e["next_obs"], e["done"])
-    return buffer
+    return replays

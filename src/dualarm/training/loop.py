@@ -28,7 +28,7 @@ from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.checkpointing import restore_trainer, trainer_state
 from dualarm.training.config import TrainConfig
 from dualarm.training.curriculum import ReverseCurriculum
-from dualarm.training.demonstrations import demonstration_buffer
+from dualarm.training.demonstrations import demonstrations
 from dualarm.training.evaluation import evaluate
 from dualarm.training.exploration import Exploration
 from dualarm.training.lifecycle import resume_run, start_run
@@ -97,7 +97,9 @@ class Trainer:
         self.mirror = TaskMirror(task, constraints) if config.replay.mirror else None
         # Demonstrations are recorded again on resume (the expert, the replays and the physics
         # are deterministic); the normaliser's statistics then come from the checkpoint.
-        self.demos = demonstration_buffer(config, v, constraints)
+        self.demos, start_states = demonstrations(config, v, constraints)
+        if start_states is not None:            # later starts from the replays, not placed
+            v.set_start_states(start_states)
         if self.demos is not None:
             self.agent.normalizer.update(self.demos.data["obs"][:len(self.demos)])
         self.curriculum, self.probes = None, None
@@ -106,7 +108,7 @@ class Trainer:
             window = 2 * starts.probe if starts.probe else 64
             self.curriculum = ReverseCurriculum(starts.probs, starts.curriculum, window)
             if starts.probe:
-                self.probes = CurriculumProbes(config, constraints, self.curriculum)
+                self.probes = CurriculumProbes(config, constraints, self.curriculum, start_states)
         self.rng = np.random.default_rng([config.seed, 1])
         self.exploration = Exploration(config, self.agent, self.rng)
         self.updates = GradientUpdates(config, self.agent, self.buffer,

@@ -19,10 +19,13 @@ class CurriculumProbes:
         config: the run's ``TrainConfig`` (its environment and ``num_envs``).
         constraints: the run's ``ConstraintSet`` (None for "none").
         curriculum: the ``ReverseCurriculum`` that records the probes' successes.
+        start_states: the recorded states that training's later starts come from
+            (``RecordedStates``), which the probes start from too; None: placed starts.
     """
 
-    def __init__(self, config, constraints, curriculum: ReverseCurriculum):
+    def __init__(self, config, constraints, curriculum: ReverseCurriculum, start_states=None):
         self.config, self.constraints, self.curriculum = config, constraints, curriculum
+        self.start_states = start_states
         self.episodes = config.starts.probe
         self.vecs = None
 
@@ -33,6 +36,9 @@ class CurriculumProbes:
             n = min(self.config.num_envs, self.episodes)
             self.vecs = {k: make_vector_env(self.config, n, constraints=self.constraints, start=k)
                          for k in range(1, len(START_CLASSES))}
+            for vec in self.vecs.values():
+                if self.start_states is not None:
+                    vec.set_start_states(self.start_states)
         for k, vec in self.vecs.items():
             seed_base = int(np.random.SeedSequence([PROBE_SEED_BASE, k, episode]).generate_state(1)[0])
             result = evaluate(lambda o: agent.act(o, actors="online"), vec, self.episodes, seed_base)

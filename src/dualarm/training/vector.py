@@ -103,6 +103,10 @@ class BaxterVector(VectorEnv):
         """Start probabilities (reach, grasp, align) of the next resets."""
         self.batch.set_start_probs(probs)
 
+    def set_start_states(self, states) -> None:
+        """Take the later starts of the next resets from ``states`` (``RecordedStates``)."""
+        self.batch.set_start_states(states)
+
     def step(self, actions: np.ndarray, active: np.ndarray) -> VectorStep:
         r = self.batch.step_all(actions, active)
         return VectorStep(r.obs, r.reward, r.terminated, r.truncated, r.info["is_success"],
