@@ -108,6 +108,26 @@ def test_demos_starts_is_checked_where_it_is_set():
                                     "approach": False})
 
 
+def test_the_recordings_as_start_states_alone_are_checked_and_fill_no_buffer(tmp_path):
+    """``demos.buffer: false``: the recordings give the start states only; no demonstration
+    rows are drawn or cloned, and without ``starts`` the option is refused."""
+    from dualarm.training import Trainer
+
+    folder = str(DEFAULT_DEMO_DIR)
+    with pytest.raises(InputError, match="buffer: false leaves the recordings unused"):
+        TrainConfig().with_(demos={"folder": folder, "buffer": False})
+    config = TrainConfig().with_(demos={"folder": folder, "episodes": 2, "starts": True, "buffer": False},
+                                 episodes=4, num_envs=4, eval_every=4, eval_episodes=2)
+    assert config.algo.demo_batch_size == 0 and config.algo.bc_weight == 0
+    with pytest.raises(InputError, match="demo_batch_size > 0 draws from the demonstration buffer"):
+        config.with_(algo=config.algo.with_(demo_batch_size=8))
+    trainer = Trainer.start(config, tmp_path / "run")
+    try:
+        assert trainer.demos is None and len(trainer.vec.batch.starts.states) == 12
+    finally:
+        trainer.close()
+
+
 def test_a_run_with_demos_starts_starts_its_training_and_probes_from_the_replays(tmp_path):
     """The trainer gives the replays' states to its training copies and to the curriculum's
     probes; the evaluations keep the normal reset."""

@@ -172,7 +172,7 @@ class TrainConfig:
         if unknown:
             raise InputError(f"task overrides {unknown} are not supported; allowed: {TASK_OVERRIDES}")
         if self.demos.recordings:
-            if self.algo.demo_batch_size == 0:          # the recordings drawn as DEMOS_ALGO says
+            if self.algo.demo_batch_size == 0 and self.demos.buffer:   # drawn as DEMOS_ALGO says
                 object.__setattr__(self, "algo", with_demos_algo(self.algo))
             if self.demos.episodes == 0:                # whatever the algo says: they are moved
                 object.__setattr__(self, "demos", self.demos.with_(episodes=DEMOS_EPISODES))
@@ -213,6 +213,9 @@ class TrainConfig:
         elif self.demos.episodes and task.control != "cartesian":
             raise InputError("demos.episodes: the scripted expert demonstrates cartesian control "
                              "only, not task.control 'joint'")
+        if self.algo.demo_batch_size > 0 and self.demos.recordings and not self.demos.buffer:
+            raise InputError("algo.demo_batch_size > 0 draws from the demonstration buffer, "
+                             "which demos.buffer: false leaves empty")
         if self.demos.starts and not self.starts.later:
             raise InputError("demos.starts takes the later starts from the recordings: give "
                              "starts.probs other than (1, 0, 0), for example [0.2, 0.2, 0.6]")

@@ -196,6 +196,9 @@ class Demos(Settings):
             that sub-task (``dualarm.envs.starts.RecordedStates``), instead of a state placed by
             the simulator: states a robot reaches by replaying the demonstration. Needs
             ``starts.probs`` other than (1, 0, 0); the curriculum's probes start there too.
+        buffer: with ``folder``: the successful replays' transitions fill the demonstration
+            buffer (drawn as ``DEMOS_ALGO`` says). False: the recordings are used as start
+            states alone (needs ``starts``), the control that tells the two uses apart.
 
     The recordings' hand paths are followed one retimed point per step, at the person's pace
     (``dualarm.sim_demos.replay.follow_path``).
@@ -211,6 +214,7 @@ class Demos(Settings):
     episodes: int = 0
     shuffle: bool = False
     starts: bool = False
+    buffer: bool = True
 
     @classmethod
     def from_dict(cls, d, where: str = "config", base=None):
@@ -224,6 +228,9 @@ class Demos(Settings):
         if self.starts and self.folder is None:
             raise InputError("starts begins episodes at the recordings' replayed states: give "
                              "folder too (on the command line, --demos DIR)")
+        if not self.buffer and not self.starts:
+            raise InputError("buffer: false leaves the recordings unused unless they give the "
+                             "start states: set starts: true too")
 
     @property
     def recordings(self) -> bool:

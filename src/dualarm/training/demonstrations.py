@@ -23,12 +23,15 @@ def demonstrations(config: TrainConfig, vec: VectorEnv, constraints
                    ) -> tuple[ReplayBuffer | None, RecordedStates | None]:
     """The run's demonstration buffer: the recordings of ``config.demos.folder``
     (``record_recording_replays``), else ``config.demos.episodes`` of the scripted expert in
-    ``vec`` (``record_expert_demonstrations``), else None; and with ``config.demos.starts``
-    the successful replays' states to start training episodes from, else None."""
+    ``vec`` (``record_expert_demonstrations``), else None (also with ``demos.buffer`` false);
+    and with ``config.demos.starts`` the successful replays' states to start training
+    episodes from, else None."""
     if config.demos.recordings:
         replays = successful_replays(config, constraints,
                                      log=lambda line: print(line, file=sys.stderr))
         states = recorded_states(replays) if config.demos.starts else None
+        if not config.demos.buffer:
+            return None, states
         return record_recording_replays(config, constraints, replays=replays), states
     if config.demos.episodes:
         return record_expert_demonstrations(config, vec), None
