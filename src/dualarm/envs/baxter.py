@@ -245,7 +245,7 @@ class BaxterBatch:
         """Begin copy ``i`` at a recorded demonstration episode's scene, each arm at a step of it
         where that arm was at its ``starts`` sub-task (``StartDistribution.states``), at rest;
         then the same short settle as placed starts."""
-        c, m, d, ix = self.config, self.model, self.datas[i], self.ix
+        d, ix = self.datas[i], self.ix
         bank = self.starts.states
         e, steps = bank.draw(rng, starts, self.starts.approach)
         self.box_start_pos[i] = bank.boxes[e]
@@ -255,6 +255,13 @@ class BaxterBatch:
             d.qpos[ix.qpos_gather[arm]] = bank.qpos[e, steps[arm], arm]
             d.ctrl[ix.finger_ctrl[arm]] = bank.fingers[e, steps[arm], arm]
         d.qvel[:] = 0.0
+        self._settle_at_posture(i)
+
+    def _settle_at_posture(self, i: int) -> None:
+        """Point copy ``i``'s controllers at its arms' present posture (the hand targets in
+        cartesian control, the joint servos' targets in joint control) and run two control
+        periods, so that fingers closing on a box take hold before the episode begins."""
+        c, m, d, ix = self.config, self.model, self.datas[i], self.ix
         mujoco.mj_kinematics(m, d)
         if self.cartesian:
             d.mocap_pos[ix.hand_mocap] = d.site_xpos[ix.grip_site]
@@ -297,15 +304,7 @@ class BaxterBatch:
         touching = 0.5 * (2 * c.scene.box_half_size + 0.001 - GAP_AT_ZERO)  # l = -r at contact
         d.qpos[ix.finger_qpos[held]] = np.array([-touching, touching])
         d.ctrl[ix.finger_ctrl[held]] = FINGER_CLOSED
-        if self.cartesian:
-            mujoco.mj_kinematics(m, d)
-            d.mocap_pos[ix.hand_mocap] = d.site_xpos[ix.grip_site]
-        else:
-            d.ctrl[ix.arm_ctrl] = d.qpos[ix.arm_qpos]
-            self.joint_command[i] = d.qpos[ix.arm_qpos]
-        mujoco.mj_forward(m, d)
-        mujoco.mj_step(m, d, nstep=2 * c.substeps)
-        mujoco.mj_kinematics(m, d)
+        self._settle_at_posture(i)
 
     # ------------------------------------------------------------------- step
     def check_actions(self, action) -> np.ndarray:
