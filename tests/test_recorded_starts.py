@@ -147,3 +147,25 @@ def test_a_run_with_demos_starts_starts_its_training_and_probes_from_the_replays
     finally:
         trainer.close()
 
+
+
+def test_a_run_from_a_config_with_a_relative_demos_folder_resumes_from_anywhere(tmp_path, monkeypatch):
+    """A config file names its demonstration folder relative to itself; the run directory
+    keeps it as an absolute path, so resuming from another working directory finds it."""
+    import os
+
+    from dualarm.cli.main import main
+
+    (tmp_path / "cfg").mkdir()
+    folder = os.path.relpath(DEFAULT_DEMO_DIR, tmp_path / "cfg")
+    (tmp_path / "cfg" / "c.yaml").write_text(
+        f"extends: recipe\nnum_envs: 4\neval_every: 4\neval_episodes: 2\n"
+        f"demos:\n  folder: {folder}\n  episodes: 1\n  starts: true\n")
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", "--config", "cfg/c.yaml", "--episodes", "4", "-o", "run"]) == 0
+    saved = TrainConfig.load_saved(tmp_path / "run" / "config.yaml")
+    assert os.path.isabs(saved.demos.folder) and saved.demos.starts
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    assert main(["train", "--resume", str(tmp_path / "run"), "--episodes", "8"]) == 0
+    assert len((tmp_path / "run" / "metrics.csv").read_text().splitlines()) == 9
