@@ -50,7 +50,6 @@ class Replay:
         obs, act, rew, next_obs, done: the episode as the learner stores it: (S, 2, O),
             (S, 2, 4), (S, 2), (S, 2, O), (S,).
         terms: the environment's reward terms by name, each (S, 2).
-        joints: (S + 1, 14) rad, Baxter's joint angles after the reset and after each step.
         states: the episode's scene and states for ``dualarm.envs.starts.RecordedStates``:
             ``boxes``, ``targets`` (2, 3) m, and after the reset and each step ``qpos``
             (S + 1, 2, 16), ``fingers`` (S + 1, 2, 2), ``subtask`` (S + 1, 2).
@@ -68,8 +67,13 @@ class Replay:
     next_obs: np.ndarray = field(repr=False)
     done: np.ndarray = field(repr=False)
     terms: dict = field(default_factory=dict, repr=False)
-    joints: np.ndarray | None = field(default=None, repr=False)
     states: dict | None = field(default=None, repr=False)
+
+    @property
+    def joints(self) -> np.ndarray:
+        """(S + 1, 14) rad, Baxter's joint angles after the reset and after each step, left
+        s0..w2 then right (the first 7 of each arm's ``states["qpos"]``)."""
+        return self.states["qpos"][:, :, :7].reshape(-1, 14)
 
     @property
     def why(self) -> str:
@@ -181,7 +185,6 @@ def _episode(env, name: str, scene: Scene, retimed_steps: int, act, error: np.nd
     obs, info = env.reset(placement=scene)
     rows = {k: [] for k in ("obs", "act", "rew", "next_obs", "done")}
     terms: dict[str, list] = {}
-    joints = [env.joint_angles()]
     states = {"boxes": env.box_start.copy(), "targets": env.targets.copy(),
               "qpos": [], "fingers": [], "subtask": []}
 
@@ -195,7 +198,6 @@ def _episode(env, name: str, scene: Scene, retimed_steps: int, act, error: np.nd
     for k in range(limit):
         action = act(k, obs)
         result = env.step(action)
-        joints.append(env.joint_angles())
         keep_state(result.info)
         if after is not None:
             after(k)
@@ -211,7 +213,7 @@ def _episode(env, name: str, scene: Scene, retimed_steps: int, act, error: np.nd
     return Replay(name, bool(result.info["is_success"]), len(rows["done"]), retimed_steps,
                   np.asarray(result.info["subtask"]).copy(), error,
                   *(np.stack(rows[k]) for k in ("obs", "act", "rew", "next_obs", "done")),
-                  {term: np.stack(v) for term, v in terms.items()}, np.stack(joints),
+                  {term: np.stack(v) for term, v in terms.items()},
                   {k: np.stack(v) if isinstance(v, list) else v for k, v in states.items()})
 
 
