@@ -36,8 +36,8 @@ class CurriculumProbes:
             n = min(self.config.num_envs, self.episodes)
             self.vecs = {k: make_vector_env(self.config, n, constraints=self.constraints, start=k)
                          for k in range(1, len(START_CLASSES))}
-            for vec in self.vecs.values():
-                if self.start_states is not None:
+            if self.start_states is not None:
+                for vec in self.vecs.values():
                     vec.set_start_states(self.start_states)
         for k, vec in self.vecs.items():
             seed_base = int(np.random.SeedSequence([PROBE_SEED_BASE, k, episode]).generate_state(1)[0])
