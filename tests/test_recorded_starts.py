@@ -169,3 +169,20 @@ def test_a_run_from_a_config_with_a_relative_demos_folder_resumes_from_anywhere(
     monkeypatch.chdir(tmp_path / "elsewhere")
     assert main(["train", "--resume", str(tmp_path / "run"), "--episodes", "8"]) == 0
     assert len((tmp_path / "run" / "metrics.csv").read_text().splitlines()) == 9
+
+
+def test_a_run_directory_keeps_every_path_absolute_but_its_own_files(tmp_path, monkeypatch):
+    """``TrainConfig.stored_in``, the one place that writes paths into a run directory: a
+    relative path from anywhere becomes absolute, a file inside the directory stays named
+    relative to it (so the directory can move), and an absolute path is kept as it is."""
+    import os
+
+    monkeypatch.chdir(tmp_path)
+    root = tmp_path / "run"
+    config = TrainConfig().with_(constraints="c/multi.yaml", demos={"folder": "demos"})
+    stored = config.stored_in("run")
+    assert stored.constraints == str(tmp_path / "c" / "multi.yaml")
+    assert stored.demos.folder == str(tmp_path / "demos")
+    own = config.with_(constraints=str(root / "constraints.yaml")).stored_in(root)
+    assert own.constraints == "constraints.yaml"
+    assert os.path.isabs(own.demos.folder) and own.demos == stored.demos

@@ -9,6 +9,7 @@ baseline (``--config paper``), which does not learn the full task.
 from __future__ import annotations
 
 import functools
+import os
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
@@ -280,6 +281,25 @@ class TrainConfig:
             if name in changes and not isinstance(changes[name], kind):
                 changes[name] = kind.from_dict(changes[name], where=name, base=getattr(self, name))
         return replace(self, **changes)
+
+    def stored_in(self, root: str | Path) -> "TrainConfig":
+        """The config as the run directory ``root`` keeps it, so that it reads the same from any
+        working directory: each of ``PATH_FIELDS`` made absolute, except a path inside ``root``
+        (the run's own constraints copy), named relative to it (``load_saved`` resolves a
+        relative path against the directory)."""
+        root = Path(os.path.abspath(root))
+        config = self
+        for group, name in PATH_FIELDS:
+            section = config if group is None else getattr(config, group)
+            value = getattr(section, name)
+            if not value:
+                continue
+            full = Path(os.path.abspath(value))
+            stored = str(full.relative_to(root)) if full.is_relative_to(root) else str(full)
+            if stored != value:
+                config = (config.with_(**{name: stored}) if group is None else
+                          config.with_(**{group: section.with_(**{name: stored})}))
+        return config
 
     def to_dict(self) -> dict:
         d = {f.name: plain(getattr(self, f.name)) for f in fields(self)}

@@ -4,7 +4,6 @@ the logs up to it are checked before anything is rewritten)."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 from dualarm.atomic import atomic_copy, leftover_temporaries
@@ -28,10 +27,6 @@ def start_run(trainer_class, config: TrainConfig, out: str | Path, make_env=None
         if source is not None:
             atomic_copy(source, paths.constraints)
             trainer.config = trainer.config.with_(constraints=str(paths.constraints))
-        folder = trainer.config.demos.folder
-        if folder is not None and not os.path.isabs(folder):
-            # the same folder, named so that a resume from any working directory finds it
-            trainer.config = trainer.config.with_(demos=trainer.config.demos.with_(folder=os.path.abspath(folder)))
         trainer.stored_config().save(paths.config)
         trainer.metrics.truncate(0)
         trainer.eval_log.truncate(0)

@@ -174,10 +174,9 @@ class Trainer:
             self._lock = None
 
     def stored_config(self) -> TrainConfig:
-        """The config as the run directory keeps it: its own constraints copy named
-        relative to the directory (``TrainConfig.load`` resolves it there)."""
-        own = self.config.constraints and Path(self.config.constraints) == self.paths.constraints
-        return self.config.with_(constraints=self.paths.constraints.name) if own else self.config
+        """The config as the run directory keeps it (``TrainConfig.stored_in``): its own
+        constraints copy named relative to the directory, every other path absolute."""
+        return self.config.stored_in(self.paths.root)
 
     # ------------------------------------------------------------- the loop
     def run(self) -> TrainResult:
