@@ -104,12 +104,6 @@ class DADDPGConfig(Settings):
     bc_weight: float = 0.0
     """Weight of the behaviour-cloning term on the demonstration rows of a batch, Q-filtered:
     only where the critic rates the demonstrated action above the actor's (Nair et al. 2018)."""
-    demo_return_floor: bool = False
-    """Floor the critics' target on the demonstration rows at the demonstration's own
-    discounted return from that step (shaping included; only for episodes that ended in a
-    success): what a demonstration achieved from a state is a lower bound of the best
-    value there (He et al. 2017, optimality tightening; Oh et al. 2018, self-imitation), so
-    the critics need not wait for the temporal-difference chain to carry the success back."""
     updates_per_step: float = 0.5
     """Gradient updates per joint environment step (the update-to-data ratio)."""
     eval_actor: str = "online"

@@ -222,8 +222,6 @@ class DADDPG:
 
         Args:
             batch: obs and next_obs (B, A, O), act (B, A, U), rew (B, A) and done (B,);
-                optionally return_floor (D, A), learner units: a lower bound of the targets
-                of the last D rows (``demo_return_floor``);
                 optionally penalty_weight (B, A), the action penalty's weight per sample and
                 agent in place of ``action_l2``; optionally shaping (B, A), a term added to the
                 scaled reward (learner units, for example potential-based shaping).
@@ -247,12 +245,6 @@ class DADDPG:
 
         with torch.no_grad():
             y = self.td_target(r, not_done, o2)
-            if "return_floor" in batch:                            # (D, A), the last D rows
-                floor = batch["return_floor"].transpose(0, 1).unsqueeze(-1)
-                if self.config.q_clip > 0:
-                    floor = floor.clamp(-self.config.q_clip, self.config.q_clip)
-                d = floor.shape[1]
-                y[:, -d:] = torch.maximum(y[:, -d:], floor)
         q = self._per_agent(self.critic(self._critic_input(o, a_taken)))
         critic_loss = ((y - q) ** 2).mean(dim=(2, 3)).sum()       # per sample, summed over critics
         # The actor climbs the critic as it is before this step's critic update.

@@ -75,34 +75,3 @@ class ReplayBuffer:
             self.data[k][:size] = saved.numpy()
         self.size = size
         self.next = int(state["next"]) % self.capacity
-
-
-def discounted_returns(rew: np.ndarray, gamma: float) -> np.ndarray:
-    """Each step's discounted return to the end of its episode: G_t = sum_k gamma^k r_(t+k),
-    (T, A) from rewards (T, A)."""
-    out = np.zeros_like(np.asarray(rew, dtype=np.float64))
-    running = np.zeros(out.shape[1:])
-    for t in range(len(out) - 1, -1, -1):
-        running = rew[t] + gamma * running
-        out[t] = running
-    return out
-
-
-class DemonstrationBuffer(ReplayBuffer):
-    """A ``ReplayBuffer`` whose rows also carry ``ret`` (capacity, A): the discounted return
-    (environment reward units) from that step to the end of its episode, for episodes that
-    terminated; -inf for those that did not (a cut-off return bounds nothing)."""
-
-    def __init__(self, capacity: int, num_agents: int, obs_size: int, act_size: int):
-        super().__init__(capacity, num_agents, obs_size, act_size)
-        self.shapes["ret"] = (num_agents,)
-        self.data["ret"] = np.full((self.capacity, num_agents), -np.inf, dtype=np.float32)
-
-    def add_with_returns(self, obs, act, rew, next_obs, done, gamma: float) -> None:
-        """Append one episode of T transitions in order (arguments as ``add``); its returns
-        are computed here when its last transition terminated."""
-        start = self.next
-        self.add(obs, act, rew, next_obs, done)
-        if len(done) and done[-1]:
-            idx = (start + np.arange(len(done))) % self.capacity
-            self.data["ret"][idx] = discounted_returns(np.asarray(rew), gamma)

@@ -217,9 +217,6 @@ class TrainConfig:
         if self.algo.demo_batch_size > 0 and self.demos.recordings and not self.demos.buffer:
             raise InputError("algo.demo_batch_size > 0 draws from the demonstration buffer, "
                              "which demos.buffer: false leaves empty")
-        if self.algo.demo_return_floor and not (self.demos.recordings and self.demos.buffer):
-            raise InputError("algo.demo_return_floor floors the targets at the recordings' own "
-                             "returns: give demos.folder (with demos.buffer true)")
         if self.demos.starts and not self.starts.later:
             raise InputError("demos.starts takes the later starts from the recordings: give "
                              "starts.probs other than (1, 0, 0), for example [0.2, 0.2, 0.6]")

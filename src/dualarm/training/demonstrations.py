@@ -9,7 +9,7 @@ import sys
 import numpy as np
 
 from dualarm.envs.starts import RecordedStates
-from dualarm.rl.replay import DemonstrationBuffer, ReplayBuffer
+from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import TrainConfig
 from dualarm.training.evaluation import evaluate
 from dualarm.training.vector import VectorEnv
@@ -81,10 +81,9 @@ def record_recording_replays(config: TrainConfig, constraints, log=None,
              "rew": r.rew,
              "next_obs": r.next_obs, "done": r.done} for r in replays]
     rows = sum(len(e["done"]) for e in kept)
-    buffer = DemonstrationBuffer(rows, 2, kept[0]["obs"].shape[-1], kept[0]["act"].shape[-1])
+    buffer = ReplayBuffer(rows, 2, kept[0]["obs"].shape[-1], kept[0]["act"].shape[-1])
     for e in kept:
-        buffer.add_with_returns(e["obs"], e["act"], e["rew"], e["next_obs"], e["done"],
-                                config.algo.gamma)
+        buffer.add(e["obs"], e["act"], e["rew"], e["next_obs"], e["done"])
     return buffer
 
 

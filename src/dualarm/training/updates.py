@@ -33,15 +33,6 @@ class GradientUpdates:
         self.shaping = BatchShaping(config, agent)
         self.owed = 0.0
 
-    def return_floor(self, demos: dict[str, torch.Tensor]) -> torch.Tensor:
-        """The demonstration rows' own returns in the learner's units, (D, A): the scaled
-        return plus the shaping's, which telescopes to -phi(s) (the episode ends in a success,
-        where phi is 0)."""
-        floor = demos["ret"] * self.algo.reward_scale
-        if self.shaping.potential is not None:
-            floor = floor - self.shaping.potential(demos["obs"])
-        return floor
-
     def run(self, env_steps: int, round_steps: int) -> list[dict]:
         """The round's share of updates (none during warm-up); their losses, one dict each.
 
@@ -61,8 +52,6 @@ class GradientUpdates:
             if demo_rows:
                 demos = self.demos.sample(self.rng, demo_rows)
                 batch = {k: torch.cat([batch[k], demos[k]]) for k in batch}
-                if a.demo_return_floor:
-                    batch["return_floor"] = self.return_floor(demos)
             self.shaping.apply(batch)
             losses.append(self.agent.update(batch, demo_rows))
         return losses
