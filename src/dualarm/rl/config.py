@@ -18,7 +18,7 @@ REMOVED_FIELDS = {"noise": "gaussian", "value_rescale": False, "advantage_learni
                   "ou_theta": ANY, "grip_hold_eps": 0.0, "grip_hold_steps": ANY,
                   "free_grip": False, "critic_layer_norm": False, "random_grip": True,
                   "policy_delay": 1, "pretrain_updates": 0, "n_step": 1,
-                  "clone_updates": 0, "critic_warmup": 0}
+                  "clone_updates": 0, "critic_warmup": 0, "demo_return_floor": False}
 
 
 #: Size bounds: these fields decide memory before the first step (a network of width 10**12
