@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import os
+
 import dualarm  # noqa: F401  (headless GL before mujoco loads)
 
 import numpy as np
@@ -148,12 +150,9 @@ def test_a_run_with_demos_starts_starts_its_training_and_probes_from_the_replays
         trainer.close()
 
 
-
 def test_a_run_from_a_config_with_a_relative_demos_folder_resumes_from_anywhere(tmp_path, monkeypatch):
     """A config file names its demonstration folder relative to itself; the run directory
     keeps it as an absolute path, so resuming from another working directory finds it."""
-    import os
-
     from dualarm.cli.main import main
 
     (tmp_path / "cfg").mkdir()
@@ -175,8 +174,6 @@ def test_a_run_directory_keeps_every_path_absolute_but_its_own_files(tmp_path, m
     """``TrainConfig.stored_in``, the one place that writes paths into a run directory: a
     relative path from anywhere becomes absolute, a file inside the directory stays named
     relative to it (so the directory can move), and an absolute path is kept as it is."""
-    import os
-
     monkeypatch.chdir(tmp_path)
     root = tmp_path / "run"
     config = TrainConfig().with_(constraints="c/multi.yaml", demos={"folder": "demos"})
@@ -186,3 +183,5 @@ def test_a_run_directory_keeps_every_path_absolute_but_its_own_files(tmp_path, m
     own = config.with_(constraints=str(root / "constraints.yaml")).stored_in(root)
     assert own.constraints == "constraints.yaml"
     assert os.path.isabs(own.demos.folder) and own.demos == stored.demos
+    elsewhere = str(tmp_path / "shared" / "demos")
+    assert config.with_(demos={"folder": elsewhere}).stored_in(root).demos.folder == elsewhere
