@@ -241,11 +241,12 @@ def test_daddpg_learns_the_baxter_reach_to_80_percent_without_demonstrations(tmp
     evaluation (what `dualarm eval` loads). Measured (docs/learning-runs.md, the cheaper learner):
     0.8 first at 1,120, 960 and 1,360 episodes with seeds 0, 1, 2, so the budget is 1,600
     (until 2026-12-03 it was 1,120, which seed 0 met at its last evaluation: a pass that a
-    machine with other floating point could lose); about 5 minutes on one core."""
+    machine with other floating point could lose). The run ends at its first evaluation at
+    0.8 (``stop_at``): about 2 minutes on one core, where the whole budget took 3."""
     algo = DADDPGConfig(hidden=(128, 128), reward_scale=1 / 4000, q_clip=1.0, action_l2=0.02)
     config = TrainConfig.paper().with_(condition="none", episodes=1600, num_envs=16, eval_every=80,
                          eval_episodes=32, replay={"her_share": 0.8}, algo=algo, seed=0,
-                         task={"success_at": "reach", "max_episode_steps": 30})
+                         task={"success_at": "reach", "max_episode_steps": 30}, stop_at=0.8)
     train(config, tmp_path / "run", progress=False)
     success = [float(r["success_rate"]) for r in rows(tmp_path / "run" / "eval.csv")]
     assert success[0] == 0.0                                  # it starts unable
