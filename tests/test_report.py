@@ -12,7 +12,7 @@ from dualarm.errors import InputError
 from dualarm.curves import (condition_ratios, convergence, episodes_to_target,
                                          max_average, mean_ci, median_ratio_ci, ratio,
                                          trailing_mean)
-from dualarm.experiments.report import write_report
+from dualarm.experiments.report import _median_ratio_text, write_report
 from dualarm.experiments.summary import PAPER, PAPER_QUOTED_RATIOS, build_report, paper_ratio
 from dualarm.training.config import TrainConfig
 
@@ -141,6 +141,16 @@ def test_ratios_are_never_made_up():
         ("multi", "none"): None, ("single", "none"): None, ("multi", "single"): None,
         ("demos", "none"): None, ("demos", "multi"): None}
     assert ratio(3.0, 0.0) is None and ratio(3.0, 4.0) == 0.75
+
+
+def test_a_ratio_whose_denominator_never_got_there_says_so():
+    # demos reached the target in every seed, none in no seed: the ratio is 0, which the
+    # table must not print as a measured "0.00"
+    m = median_ratio_ci([480, 560, 400], [math.nan] * 3)
+    assert _median_ratio_text(m, "none") == "0 (none beyond the run) (0 to 0)"
+    assert _median_ratio_text((1.32, 0.87, math.inf), "none") == "1.32 (0.87 to beyond the run)"
+    assert _median_ratio_text((0.44, 0.0, 0.48), "none") == "0.44 (0 to 0.48)"
+    assert _median_ratio_text(None, "none") == "n/a"
 
 
 def test_median_ratios_count_failed_seeds_as_beyond_the_run():

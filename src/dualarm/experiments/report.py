@@ -95,21 +95,25 @@ def ratio_rows(report: Report) -> tuple[list[str], list[list[str]]]:
             name = QUANTITY_NAMES[q] + (f" {report.target:g}" if q == "episodes_to_target" else "")
             rows.append([name, f"{pair[0]}/{pair[1]}",
                          "n/a" if ours is None else f"{ours:.2f}" + (" †" if note else ""),
-                         _median_ratio_text(report.median_ratios[q][pair]),
+                         _median_ratio_text(report.median_ratios[q][pair], pair[1]),
                          paper_text, note])
     return header, rows
 
 
 def _ratio_num(x: float) -> str:
-    return "beyond the run" if math.isinf(x) else f"{x:.2f}"
+    # 0 only where the denominator's median is beyond the run (episodes are positive)
+    return "beyond the run" if math.isinf(x) else "0" if x == 0 else f"{x:.2f}"
 
 
-def _median_ratio_text(m: tuple[float, float, float] | None) -> str:
-    """"1.32 (0.87 to beyond the run)"; "n/a" when not available."""
+def _median_ratio_text(m: tuple[float, float, float] | None, denominator: str = "") -> str:
+    """"1.32 (0.87 to beyond the run)"; "0 (none beyond the run) (0 to 0.41)" where the
+    denominator condition's median never got there; "n/a" when not available."""
     if m is None:
         return "n/a"
     r, lo, hi = m
     text = _ratio_num(r)
+    if r == 0 and denominator:
+        text += f" ({denominator} beyond the run)"
     if not (math.isnan(lo) or math.isnan(hi)):
         text += f" ({_ratio_num(lo)} to {_ratio_num(hi)})"
     return text
