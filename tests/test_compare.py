@@ -13,8 +13,8 @@ from dualarm.cli.main import main
 from dualarm.constraints.constraint_set import default_constraints_path
 from dualarm.errors import InputError
 from dualarm.experiments.backends import RayBackend, execute, read_done
-from dualarm.experiments.compare import (CompareRequest, compare, load_manifest, prepare,
-                                         run_state, task_for)
+from dualarm.experiments.compare import (CompareRequest, compare, episode_budget, load_manifest,
+                                         prepare, run_state, task_for)
 from dualarm.training import TrainConfig, Trainer, train
 
 TINY = {"num_envs": 2, "eval_every": 2, "eval_episodes": 2, "checkpoint_every": 2,
@@ -283,3 +283,13 @@ def test_a_constraints_file_that_does_not_fit_its_condition_is_refused_before_an
         prepare(tmp_path / "cmp", CompareRequest(conditions=("single",), seeds=(0,), episodes=1,
                                                  constraints_dir=cons))
     assert not (tmp_path / "cmp").exists()
+
+
+def test_the_progress_total_drops_what_runs_stopped_at_success_did_not_need():
+    # three runs of 1,000 episodes: one ended at 0.85 after 480, one still going at 300, one
+    # not started; the bar shows 780 done of at most 2,480, not of 3,000
+    logged = {"none-seed0": 480, "multi-seed0": 300, "demos-seed0": 0}
+    assert episode_budget(logged, {"none-seed0"}, 1000) == (780, 2480)
+    # a run that ended on its budget counts it whole; nothing ended: the full budget
+    assert episode_budget({"a": 1000, "b": 5}, {"a"}, 1000) == (1005, 2000)
+    assert episode_budget(logged, set(), 1000) == (780, 3000)

@@ -473,13 +473,28 @@ def _describe(outcome: RunOutcome) -> str:
     return line
 
 
+def episode_budget(logged: dict[str, int], ended: set[str], target: int) -> tuple[int, int]:
+    """(done, most) for the progress bar: the episodes all runs have logged, and the most they
+    can come to. A run that has ended counts what it logged (one stopped at ``stop_at`` ends
+    before its budget, so the total shrinks as such runs end); the others count ``target``.
+
+    Args:
+        logged: run name -> episodes in its metrics.csv.
+        ended: names of the runs that have ended.
+        target: each run's episode budget.
+    """
+    done = sum(min(target, n) for n in logged.values())
+    most = sum(min(target, n) if name in ended else target for name, n in logged.items())
+    return done, most
+
+
 def run_comparison(comparison: Comparison, backend, poll_s: float = 2.0, progress: bool = True,
                    stream=None) -> CompareResult:
     """Train every unfinished run of ``comparison`` on ``backend`` until all have ended.
 
-    One progress bar counts the episodes logged by all runs (total = runs x episodes,
-    from the runs' ``metrics.csv``, polled every ``poll_s`` seconds); a line is printed as
-    each run ends. A failed run is reported and the others go on. On KeyboardInterrupt
+    One progress bar counts the episodes logged by all runs (from the runs' ``metrics.csv``,
+    polled every ``poll_s`` seconds; total = runs x episodes, less what the runs that ended at
+    ``stop_at`` did not need, ``episode_budget``); a line is printed as each run ends. A failed run is reported and the others go on. On KeyboardInterrupt
     the runs in flight are stopped (their checkpoints remain) and it is re-raised.
 
     Args:
@@ -501,16 +516,22 @@ def run_comparison(comparison: Comparison, backend, poll_s: float = 2.0, progres
     backend.start()
     print(f"backend: {backend.describe()}", file=stream)
     target = comparison.episodes
+    stop_at = comparison.base.stop_at
+    if stop_at is not None:
+        print(f"each run ends at its first evaluation at success {stop_at:g} (stop_at): the "
+              f"bar's total and time are the most the runs can take; they shrink as runs end",
+              file=stream)
     bar = tqdm(total=len(plans) * target, unit="ep", desc="compare", file=stream,
                disable=not progress, dynamic_ncols=True)
     ended: set[str] = set(result.skipped)
 
-    def count() -> int:
-        return sum(target if p.name in ended else min(target, logged_episodes(p.path)) for p in plans)
+    def count() -> None:
+        bar.n, bar.total = episode_budget({p.name: logged_episodes(p.path) for p in plans},
+                                          ended, target)
 
     queue = list(todo)
     try:
-        bar.n = count()
+        count()
         bar.refresh()
         while queue or backend.running:
             while queue and backend.running < backend.capacity:
@@ -522,7 +543,7 @@ def run_comparison(comparison: Comparison, backend, poll_s: float = 2.0, progres
                 tqdm.write(_describe(outcome), file=stream)
                 if outcome.traceback:
                     tqdm.write(outcome.traceback.rstrip(), file=stream)
-            bar.n = count()
+            count()
             bar.refresh()
     finally:
         bar.close()
