@@ -494,8 +494,9 @@ def run_comparison(comparison: Comparison, backend, poll_s: float = 2.0, progres
 
     One progress bar counts the episodes logged by all runs (from the runs' ``metrics.csv``,
     polled every ``poll_s`` seconds; total = runs x episodes, less what the runs that ended at
-    ``stop_at`` did not need, ``episode_budget``); a line is printed as each run ends. A failed run is reported and the others go on. On KeyboardInterrupt
-    the runs in flight are stopped (their checkpoints remain) and it is re-raised.
+    ``stop_at`` did not need, ``episode_budget``); a line is printed as each run ends. A
+    failed run is reported and the others go on. On KeyboardInterrupt the runs in flight are
+    stopped (their checkpoints remain) and it is re-raised.
 
     Args:
         backend: a ``LocalBackend`` or ``RayBackend`` (``capacity`` runs in flight at most).
