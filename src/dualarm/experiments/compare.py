@@ -525,10 +525,16 @@ def run_comparison(comparison: Comparison, backend, poll_s: float = 2.0, progres
     bar = tqdm(total=len(plans) * target, unit="ep", desc="compare", file=stream,
                disable=not progress, dynamic_ncols=True)
     ended: set[str] = set(result.skipped)
+    logged: dict[str, int] = {}
+    counted: set[str] = set()          # ended runs whose final count is in ``logged``
 
     def count() -> None:
-        bar.n, bar.total = episode_budget({p.name: logged_episodes(p.path) for p in plans},
-                                          ended, target)
+        for p in plans:
+            if p.name not in counted:  # an ended run's metrics.csv is read once, not every poll
+                logged[p.name] = logged_episodes(p.path)
+                if p.name in ended:
+                    counted.add(p.name)
+        bar.n, bar.total = episode_budget(logged, ended, target)
 
     queue = list(todo)
     try:
