@@ -1,6 +1,7 @@
 """`dualarm train | eval | play | export` as a user runs them."""
 
 import csv
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +37,8 @@ def test_train_writes_the_run_directory(run_dir, capsys):
     assert len((run_dir / "eval.csv").read_text().splitlines()) == 2
 
 
-def test_resume_continues_and_refuses_a_second_start(run_dir, capsys):
+def test_resume_continues_and_refuses_a_second_start(run_dir, tmp_path, capsys):
+    run_dir = Path(shutil.copytree(run_dir, tmp_path / "run"))   # the module's run stays at 8 episodes
     assert main(["train", "--resume", str(run_dir), "--episodes", "12"]) == 0
     with open(run_dir / "metrics.csv", newline="") as f:
         assert [int(r["episode"]) for r in csv.DictReader(f)] == list(range(1, 13))
@@ -427,16 +429,22 @@ def test_a_bad_extends_is_refused_naming_the_file(tmp_path, files, message, culp
     assert str(info.value).startswith(str(tmp_path / culprit) + ":")
 
 
-def test_load_learner_restores_the_critics_that_load_policy_leaves_untrained(run_dir):
+def test_load_learner_restores_the_critics_that_load_policy_leaves_untrained(tmp_path):
     """load_policy restores the actors only; a critic read from it is its initial weights.
-    load_learner restores the critics too (the same actors either way)."""
+    load_learner restores the critics too (the same actors either way). The run is its own,
+    with updates: the module's run has none in its first 8 episodes (80 steps, 100 of warm-up)."""
     import torch
 
     from dualarm.training.policy import load_learner, load_policy
 
+    config = tmp_path / "small.yaml"
+    config.write_text(yaml.safe_dump({**SMALL, "algo": {**SMALL["algo"], "warmup_steps": 20}}))
+    run_dir = tmp_path / "run"
+    assert main(["train", "--condition", "none", "--episodes", "8", "--num-envs", "4",
+                 "--config", str(config), "--out", str(run_dir)]) == 0
     _, policy_only, _ = load_policy(run_dir, "latest")
     _, learner, info = load_learner(run_dir)
-    assert info["episodes"] >= 8
+    assert info["episodes"] == 8 and learner.updates > 0
     for a, b in zip(policy_only.actor.parameters(), learner.actor.parameters()):
         assert torch.equal(a, b)
     assert not all(torch.equal(a, b) for a, b in
