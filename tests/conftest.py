@@ -13,17 +13,27 @@ def pytest_addoption(parser):
 
 
 def pytest_configure(config):
-    config.addinivalue_line("markers", "slow: minutes of training or hundreds of episodes; CI runs them, "
-                            "the quick loop leaves them out (pytest -m 'not slow')")
+    config.addinivalue_line("markers", "slow(minutes=0): minutes of training or hundreds of episodes, "
+                            "about `minutes` long on 2 vCPUs; CI runs them (the longest first), the "
+                            "quick loop leaves them out (pytest -m 'not slow')")
     config.addinivalue_line("markers", "paper_scale: a training run of tens of minutes; only with "
                             "--paper-scale (CI skips it)")
 
 
+def expected_minutes(item) -> float:
+    """A test's expected length in minutes from its marker: paper_scale tens, slow(minutes=M)
+    M (a bare slow 0.5), any other 0."""
+    if "paper_scale" in item.keywords:
+        return 30.0
+    slow = item.get_closest_marker("slow")
+    return 0.0 if slow is None else float(slow.kwargs.get("minutes", 0.5))
+
+
 def pytest_collection_modifyitems(config, items):
-    # The minutes-long tests first (a stable sort keeps every other order): with `-n`
-    # (pytest-xdist) they start at once on their own workers instead of ending the run alone.
-    # No test depends on the order.
-    items.sort(key=lambda item: "slow" not in item.keywords and "paper_scale" not in item.keywords)
+    # The longest tests first (a stable sort keeps every other order): with `-n` (pytest-xdist,
+    # whose default schedule deals the first tests out one per worker in turn) they start at
+    # once on different workers instead of ending the run alone. No test depends on the order.
+    items.sort(key=lambda item: -expected_minutes(item))
     if config.getoption("--paper-scale"):
         return
     skip = pytest.mark.skip(reason="paper scale: run with --paper-scale")

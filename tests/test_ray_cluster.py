@@ -20,7 +20,7 @@ import pytest
 import yaml
 
 pytest.importorskip("ray")
-pytestmark = pytest.mark.slow
+pytestmark = pytest.mark.slow(minutes=1)      # the sweep; the other test takes seconds
 
 from dualarm.cli.main import main  # noqa: E402
 

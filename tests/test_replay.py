@@ -215,7 +215,7 @@ def test_removed_demos_options_left_the_code_and_old_files_still_load():
         TrainConfig.from_dict({"demos": {"folder": "x", "in_replay": True}})
 
 
-@pytest.mark.slow
+@pytest.mark.slow(minutes=5)
 def test_the_full_task_is_learned_from_the_shipped_recordings(tmp_path):
     """Learning from people is tested by learning: the recipe with the 10 shipped recordings
     (replayed, moved to 256 placements, Q-filtered behaviour cloning, ``DEMOS_ALGO``) reaches

@@ -33,7 +33,7 @@ def rows(path, drop=("wall_time_s",)):
         return [{k: v for k, v in r.items() if k not in drop} for r in csv.DictReader(f)]
 
 
-@pytest.mark.slow
+@pytest.mark.slow(minutes=0.75)
 def test_daddpg_solves_the_two_point_mass_task(tmp_path):
     """Learning is tested by learning: >= 90% evaluation success (50 fixed episodes) after
     600 episodes, about 40 s on one core (seeds 0-3 measured: 1.0, 0.96, 1.0, 1.0); with
@@ -231,7 +231,7 @@ def test_generic_env_adapter_checks_the_env():
     assert obs.shape == (2, 6) and np.all(obs[0, 4:] == 0)      # left padded to 6
 
 
-@pytest.mark.slow
+@pytest.mark.slow(minutes=2.5)
 def test_daddpg_learns_the_baxter_reach_to_80_percent_without_demonstrations(tmp_path):
     """The reach sub-task (both grip sites within 2 cm of their boxes at the same step, the
     paper's rc = 4000) learned by DADDPG alone, no demonstrations: rewards scaled by 1/rc
