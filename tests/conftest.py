@@ -13,7 +13,7 @@ def pytest_addoption(parser):
 
 
 def pytest_configure(config):
-    config.addinivalue_line("markers", "slow(minutes=0): minutes of training or hundreds of episodes, "
+    config.addinivalue_line("markers", "slow(minutes=0.5): minutes of training or hundreds of episodes, "
                             "about `minutes` long on 2 vCPUs; CI runs them (the longest first), the "
                             "quick loop leaves them out (pytest -m 'not slow')")
     config.addinivalue_line("markers", "paper_scale: a training run of tens of minutes; only with "
