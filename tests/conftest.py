@@ -18,6 +18,11 @@ def pytest_configure(config):
                             "quick loop leaves them out (pytest -m 'not slow')")
     config.addinivalue_line("markers", "paper_scale: a training run of tens of minutes; only with "
                             "--paper-scale (CI skips it)")
+    # pytest-xdist's default schedule hands each worker a run of consecutive tests (a quarter of
+    # its share) to start with: all the long tests, sorted first below, would land on one
+    # worker. Two at a time deals them out, one worker each, while the quick ones fill in.
+    if config.pluginmanager.hasplugin("xdist") and getattr(config.option, "maxschedchunk", 0) is None:
+        config.option.maxschedchunk = 2
 
 
 def expected_minutes(item) -> float:
@@ -31,8 +36,8 @@ def expected_minutes(item) -> float:
 
 def pytest_collection_modifyitems(config, items):
     # The longest tests first (a stable sort keeps every other order): with `-n` (pytest-xdist,
-    # whose default schedule deals the first tests out one per worker in turn) they start at
-    # once on different workers instead of ending the run alone. No test depends on the order.
+    # two tests at a time per worker, above) they start at once on different workers instead
+    # of ending the run alone. No test depends on the order.
     items.sort(key=lambda item: -expected_minutes(item))
     if config.getoption("--paper-scale"):
         return
