@@ -3,8 +3,9 @@
 Run:  python benchmarks/update_speed.py [--threads 1] [--seconds 3] [--recipe]
 
 ``--recipe`` times the recipe's own learner (``RECIPE_ALGO`` with ``DEMOS_ALGO``'s demonstration
-rows and cloning, as ``dualarm train --demos`` runs it) at its 128 x 128 layers and at 64 x 64,
-instead of the plain-DDPG shapes below.
+rows and cloning, as ``dualarm train --demos`` runs it) at its 128 x 128 layers in float32 and
+with the hidden layers in bfloat16 (``bf16_matmuls``), and at 64 x 64, instead of the
+plain-DDPG shapes below.
 
 For each network size and batch size it times ``DADDPG.update`` on random transitions of
 the Baxter task's shapes (2 agents, 29 or 36 observations, 4 actions), counts the matmul
@@ -27,9 +28,9 @@ from dualarm.rl.replay import ReplayBuffer
 from dualarm.training.config import DEMOS_ALGO, RECIPE_ALGO
 
 
-def matmul_gflops(m: int, k: int, n: int, seconds: float) -> float:
-    """Best GFLOP/s of (m x k) @ (k x n) float32 over repeated timed bursts."""
-    a, b = torch.randn(m, k), torch.randn(k, n)
+def matmul_gflops(m: int, k: int, n: int, seconds: float, dtype: torch.dtype = torch.float32) -> float:
+    """Best GFLOP/s of (m x k) @ (k x n) in ``dtype`` over repeated timed bursts."""
+    a, b = torch.randn(m, k, dtype=dtype), torch.randn(k, n, dtype=dtype)
     for _ in range(10):
         a @ b
     best, end = 0.0, time.perf_counter() + seconds
@@ -78,20 +79,21 @@ def main() -> None:
              ((128, 128), 256, {}), ((256, 256, 256), 128, {}),
              ((256, 256), 256, {"twin_critics": True}), ((128, 128), 256, {"twin_critics": True}),
              ((256, 256), 256, demos)]
-    print(f"{'hidden':>16} {'batch':>5} {'twin':>4} {'demo':>4} {'GFLOP/upd':>9} "
+    print(f"{'hidden':>16} {'batch':>5} {'twin':>4} {'demo':>4} {'bf16':>4} {'GFLOP/upd':>9} "
           f"{'ms/upd':>7} {'upd/s':>6} {'GFLOP/s':>7} {'roofline':>8} {'ratio':>5}")
     if args.recipe:
-        configs = [RECIPE_ALGO.with_(hidden=hidden, buffer_size=20_000, **DEMOS_ALGO)
-                   for hidden in ((128, 128), (64, 64))]
+        configs = [RECIPE_ALGO.with_(hidden=hidden, buffer_size=20_000, bf16_matmuls=bf16, **DEMOS_ALGO)
+                   for hidden, bf16 in (((128, 128), False), ((128, 128), True), ((64, 64), False))]
     else:
         configs = [DADDPGConfig(hidden=hidden, batch_size=batch, buffer_size=20_000, **options)
                    for hidden, batch, options in cases]
     for config in configs:
         hidden, batch = config.hidden, config.batch_size
-        flags = [config.twin_critics, config.demo_batch_size > 0]
+        flags = [config.twin_critics, config.demo_batch_size > 0, config.bf16_matmuls]
         dt, flops = time_updates(config, args.obs, args.seconds)
         # the roofline: the matmul rate of the update's hidden layer shape (batch x h @ h x h)
-        peak = matmul_gflops(2 * batch, hidden[-1], hidden[-1], min(1.0, args.seconds))
+        peak = matmul_gflops(2 * batch, hidden[-1], hidden[-1], min(1.0, args.seconds),
+                             torch.bfloat16 if config.bf16_matmuls else torch.float32)
         rate = flops / dt / 1e9
         print(f"{'x'.join(map(str, hidden)):>16} {batch:>5} "
               + " ".join(f"{'yes' if f else 'no':>4}" for f in flags)

@@ -1,10 +1,12 @@
 """DADDPG's parts: stacked networks, Eqs. 13-15, agent independence, replay, normaliser, noise."""
 
+import warnings
+
 import numpy as np
 import pytest
 import torch
 
-from dualarm.rl import DADDPG, DADDPGConfig
+from dualarm.rl import DADDPG, DADDPGConfig, daddpg
 from dualarm.rl.daddpg import NonFiniteLoss
 from dualarm.rl.networks import StackedMLP
 from dualarm.rl.noise import GaussianNoise
@@ -64,6 +66,61 @@ def test_stacked_mlp_is_one_mlp_per_agent():
     for i in range(2):
         torch.testing.assert_close(y[i], agent_mlp(net, i, x[i]))
     assert not torch.equal(net.out.weight[0], net.out.weight[1])   # agents start different
+
+
+def test_low_precision_multiplies_the_hidden_layers_in_bfloat16_and_keeps_float32_parameters():
+    g = torch.Generator().manual_seed(0)
+    full = StackedMLP(2, 24, 3, (64, 64), generator=g)
+    low = StackedMLP(2, 24, 3, (64, 64), low_precision=True)
+    low.load_state_dict(full.state_dict())
+    assert [l.low_precision for l in low.hidden] == [True, True] and not low.out.low_precision
+    x = torch.randn(2, 50, 24, generator=g)
+    y, y_low = full(x), low(x)
+    assert y_low.dtype == torch.float32
+    # each hidden layer rounded to 8 significant bits: close to float32, but not equal to it
+    torch.testing.assert_close(y_low, y, rtol=0.05, atol=0.02)
+    assert not torch.equal(y_low, y)
+    # by hand: each hidden layer's inputs, weights and bias rounded to bfloat16, summed in
+    # float32 and the result rounded again (up to a last bit where the sums' order differs);
+    # the output layer in float32
+    def rounded(t):
+        return t.bfloat16().float()
+    h = rounded(x)
+    for layer in low.hidden:
+        h = rounded(torch.relu(h @ rounded(layer.weight) + rounded(layer.bias)))
+    by_hand = h @ low.out.weight + low.out.bias
+    torch.testing.assert_close(y_low, by_hand, rtol=1e-2, atol=2e-4)
+    assert (y_low - by_hand).abs().max() < (y - by_hand).abs().max() / 4
+    y_low.square().sum().backward()
+    for p in low.parameters():
+        assert p.grad.dtype == torch.float32 and p.grad.abs().sum() > 0
+
+
+def test_a_bf16_learner_updates_close_to_the_float32_one():
+    batch = random_batch()
+    full, low = small_agent(), small_agent(bf16_matmuls=True)
+    infos = []
+    for agent in (full, low):
+        agent.normalizer.update(batch["obs"].numpy())
+        infos.append(agent.update(batch))
+    for key in ("critic_loss", "actor_loss", "q_mean"):
+        assert infos[1][key] == pytest.approx(infos[0][key], rel=0.03, abs=1e-3), key
+    assert infos[1] != infos[0]
+    # Adam's first step moves each weight by about +-lr: the two agree but for a few weights
+    # whose gradient is near zero and changed sign
+    for a, b in zip(full.critic.parameters(), low.critic.parameters()):
+        assert b.dtype == torch.float32
+        assert ((b - a).abs() > 1e-4).float().mean() < 0.05
+
+
+def test_bf16_on_a_cpu_without_native_bfloat16_warns_that_it_is_slower(monkeypatch):
+    monkeypatch.setattr(daddpg, "native_bf16", lambda: False)
+    with pytest.warns(UserWarning, match="no native bfloat16"):
+        small_agent(bf16_matmuls=True)
+    monkeypatch.setattr(daddpg, "native_bf16", lambda: True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        small_agent(bf16_matmuls=True)
 
 
 def test_the_first_stacks_alone_give_the_same_outputs_and_only_their_gradients():

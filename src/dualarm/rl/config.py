@@ -122,6 +122,11 @@ class DADDPGConfig(Settings):
     changing training; ``eval_actor: average`` makes them the run's policy. 0: none."""
     warmup_steps: int = 1000
     """Joint environment steps of uniformly random actions before learning starts."""
+    bf16_matmuls: bool = False
+    """Mixed precision: the hidden layers' matrix products in bfloat16, everything else
+    (weights, Adam, output layers, losses) in float32. About 1.5 times faster updates on a CPU
+    with native bfloat16 (AVX512-BF16 or AMX); slower elsewhere (a warning says so). Learning
+    measured the same within the seeds' spread (docs/benchmarks.md)."""
 
     def __post_init__(self):
         check_field_types(self)

@@ -20,6 +20,8 @@ zero-padded to O and U; padded action components are masked to zero).
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import torch
 
@@ -27,6 +29,14 @@ from dualarm.rl.config import EVAL_ACTORS, DADDPGConfig
 from dualarm.rl.networks import StackedMLP
 from dualarm.rl.noise import GaussianNoise
 from dualarm.rl.normalizer import RunningNormalizer
+
+
+def native_bf16() -> bool:
+    """Whether this CPU multiplies bfloat16 natively (oneDNN's check: AVX512-BF16 or AMX)."""
+    try:
+        return bool(torch.ops.mkldnn._is_mkldnn_bf16_supported())
+    except (AttributeError, RuntimeError):
+        return False
 
 
 class NonFiniteLoss(FloatingPointError):
@@ -57,16 +67,20 @@ class DADDPG:
         # Critic stacks: [Q_1 .. Q_A] or, with twin critics, [Q_1 .. Q_A, Q2_1 .. Q2_A].
         self.critics_per_agent = 2 if c.twin_critics else 1
         k = a * self.critics_per_agent
-        self.actor = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True, g, final_scale=0.1)
-        self.critic = StackedMLP(k, state_size + self.act_size, 1, c.hidden, False, g, final_scale=0.1)
-        self.actor_target = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True)
-        self.critic_target = StackedMLP(k, state_size + self.act_size, 1, c.hidden)
+        if c.bf16_matmuls and not native_bf16():
+            warnings.warn("bf16_matmuls: this CPU has no native bfloat16 arithmetic (AVX512-BF16 "
+                          "or AMX), so updates will be slower than in float32", stacklevel=2)
+        low = {"low_precision": c.bf16_matmuls}
+        self.actor = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True, g, final_scale=0.1, **low)
+        self.critic = StackedMLP(k, state_size + self.act_size, 1, c.hidden, False, g, final_scale=0.1, **low)
+        self.actor_target = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True, **low)
+        self.critic_target = StackedMLP(k, state_size + self.act_size, 1, c.hidden, **low)
         self.actor_target.load_state_dict(self.actor.state_dict())
         self.critic_target.load_state_dict(self.critic.state_dict())
         # policy_average: a slower average of the actors, for acting only (None: off)
         self.actor_average = None
         if c.policy_average > 0:
-            self.actor_average = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True)
+            self.actor_average = StackedMLP(a, self.obs_size, self.act_size, c.hidden, True, **low)
             self.actor_average.load_state_dict(self.actor.state_dict())
             self.actor_average.requires_grad_(False)
         for p in (*self.actor_target.parameters(), *self.critic_target.parameters()):
