@@ -495,33 +495,6 @@ def test_approach_shaping_is_potential_based_on_the_grip_to_box_distance(tmp_pat
         curriculum_config(shaping={"approach": -1.0})
 
 
-def test_a_rounds_batches_are_drawn_together_replay_rows_first_then_demonstration_rows(tmp_path):
-    """GradientUpdates.batches: k batches of B replay rows then D demonstration rows each,
-    different rows in each, shaping applied to all of them."""
-    from dualarm.rl.replay import ReplayBuffer
-
-    config = curriculum_config(shaping={"approach": 2.0}, episodes=8)
-    trainer = Trainer.start(config, tmp_path / "run", progress=False)
-    try:
-        trainer.run()
-        buffer = trainer.buffer
-        o, u = buffer.data["obs"].shape[-1], buffer.data["act"].shape[-1]
-        demos = ReplayBuffer(50, 2, o, u)
-        n = 20
-        demos.add(np.ones((n, 2, o)), np.full((n, 2, u), 0.5), np.zeros((n, 2)), np.ones((n, 2, o)),
-                  np.zeros(n), np.zeros(n))
-        trainer.updates.demos = demos
-        b = config.algo.batch_size
-        batches = trainer.updates.batches(5, 3)
-        assert len(batches) == 5
-        for batch in batches:
-            assert batch["obs"].shape == (b + 3, 2, o) and batch["shaping"].shape == (b + 3, 2)
-            assert (batch["act"][b:] == 0.5).all() and not (batch["act"][:b] == 0.5).all(dim=(1, 2)).any()
-        assert not torch.equal(batches[0]["obs"][:b], batches[1]["obs"][:b])
-    finally:
-        trainer.close()
-
-
 def test_carry_shaping_adds_a_potential_on_the_box_to_target_distance(tmp_path):
     """shaping.carry k: phi gains -k * |target - box| per arm, beside shaping.approach's term;
     a box that does not move adds the constant -(1 - gamma) phi."""
