@@ -8,9 +8,8 @@ With ``low_precision`` the hidden layers compute in bfloat16 (mixed precision, a
 ``amp`` does on GPUs): the weights, their gradients and Adam stay float32, a layer's inputs,
 weights and bias are rounded to bfloat16 (8 significant bits) for its product, and the hidden
 activations stay bfloat16. The output layers compute in float32, so that values and actions
-keep float32 precision. On a CPU
-with native bfloat16 arithmetic (AVX512-BF16 or AMX) an update is about 1.5 times faster
-(docs/benchmarks.md); elsewhere torch emulates it, slower than float32.
+keep float32 precision. On a CPU with native bfloat16 arithmetic (AVX512-BF16 or AMX) an update
+is about 1.5 times faster (docs/benchmarks.md); elsewhere torch emulates it, slower than float32.
 """
 
 from __future__ import annotations
@@ -26,7 +25,7 @@ class StackedLinear(nn.Module):
 
     Initialised like ``torch.nn.Linear`` (uniform in +-1/sqrt(in)) for each agent. With
     ``low_precision`` x @ weight + bias is computed in bfloat16 and returned in bfloat16
-    (float32 parameters); otherwise in float32 (a bfloat16 x is converted first).
+    (float32 parameters); otherwise in float32 (x must be float32).
     """
 
     def __init__(self, num_agents: int, in_features: int, out_features: int,
@@ -46,7 +45,7 @@ class StackedLinear(nn.Module):
         if self.low_precision:
             bf16 = torch.bfloat16
             return torch.baddbmm(bias.to(bf16), x.to(bf16), weight.to(bf16))
-        return torch.baddbmm(bias, x.to(torch.float32), weight)
+        return torch.baddbmm(bias, x, weight)
 
 
 class StackedMLP(nn.Module):
@@ -75,12 +74,15 @@ class StackedMLP(nn.Module):
                                     for a, b in zip(widths[:-1], widths[1:]))
         self.out = StackedLinear(num_agents, widths[-1], out_features, generator, final_scale)
         self.tanh_output = tanh_output
+        self.low_precision = low_precision
 
     def forward(self, x: torch.Tensor, stacks: int | None = None) -> torch.Tensor:
         """x (S, B, in) -> (S, B, out) through the first S networks (all if ``stacks`` is
         None): a caller that needs only some of the stacked networks pays only for those."""
         for layer in self.hidden:
             x = torch.relu(layer(x, stacks))
+        if self.low_precision:                  # bfloat16 activations into the float32 output layer
+            x = x.float()
         x = self.out(x, stacks)
         return torch.tanh(x) if self.tanh_output else x
 
