@@ -242,3 +242,35 @@ def test_palms_in_calibration_recovered_as_forearm_roll():
     fixed = map_recording(rec, heading="auto")
     np.testing.assert_allclose(fixed.joints.q, q, atol=1e-5)
     assert np.max(fixed.joints.residual) < 1e-5
+
+
+#: numpy ufuncs with a SIMD routine beside the C library's (numpy 1.26 on AVX-512 CPUs).
+SIMD_UFUNCS = ("sin", "cos", "tan", "arcsin", "arccos", "arctan", "arctan2", "hypot", "exp",
+               "log", "power", "tanh")
+
+
+def test_mapping_hands_numpy_trigonometry_contiguous_arrays_only(monkeypatch):
+    """Mapping a shipped recording (heading, calibration, joint angles, Baxter's kinematics)
+    never gives numpy's sin, cos, arctan2... a strided array: for one, numpy chooses its SIMD
+    or its C-library routine, whose results differ in the last bit, by where the output array
+    happened to be allocated, and the same recording mapped a bit differently from run to run
+    (``dualarm.kinematics.packed``)."""
+    import sys
+
+    from dualarm.demos.formats import DEFAULT_DEMO_DIR
+    from dualarm.demos.loading import load_demo
+    from dualarm.kinematics import segment_rotations_in_base
+
+    calls = []
+    for name in SIMD_UFUNCS:
+        def strict(*args, _ufunc=getattr(np, name), **kwargs):
+            caller = sys._getframe(1).f_globals.get("__name__", "")
+            if caller.startswith("dualarm"):
+                strided = [a.strides for a in args if isinstance(a, np.ndarray) and not a.flags.c_contiguous]
+                assert not strided, f"{caller} calls np.{_ufunc.__name__} on a strided array {strided}"
+                calls.append(_ufunc.__name__)
+            return _ufunc(*args, **kwargs)
+        monkeypatch.setattr(np, name, strict)
+    demo = load_demo(DEFAULT_DEMO_DIR / "demo_00.csv.gz")
+    segment_rotations_in_base(demo.q[:, :7])
+    assert {"arctan2", "cos", "sin"} <= set(calls)

@@ -91,6 +91,21 @@ BAXTER_DH_TABLE: tuple[DHRow, ...] = (
 )
 
 
+def packed(x) -> np.ndarray:
+    """``x`` as a C-contiguous float64 array of the same shape (a copy only if it is strided).
+
+    Feed numpy's sin, cos, arctan2 and the like through this when ``x`` may be a strided view
+    (a column, a matrix entry over time). On AVX-512 CPUs numpy 1.26 computes them with a SIMD
+    routine or with the C library's, two results that differ in the last bit, and for a
+    strided input it picks by whether the output array happens to be allocated within
+    ``stride x length`` bytes of the input's start: where earlier allocations left the heap
+    decided. The same recording then mapped to joint angles a bit apart from run to run,
+    and training runs with demonstrations did not repeat. Contiguous inputs always take the
+    same routine.
+    """
+    return np.asarray(x, dtype=float, order="C")
+
+
 def wrap_angle(angle):
     """Angles (rad, scalar or array) brought into [-pi, pi): the same rotation about one axis."""
     return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
@@ -200,7 +215,7 @@ JOINT_AXES = (2, 1, 0, 1, 0, 1, 0)
 
 def axis_rotation(axis: int, angle: np.ndarray) -> np.ndarray:
     """(...,) angles (rad) -> (..., 3, 3) rotation matrices about base axis 0=x, 1=y, 2=z."""
-    angle = np.asarray(angle, dtype=float)
+    angle = packed(angle)           # callers pass columns of (..., 7) joint vectors
     c, s = np.cos(angle), np.sin(angle)
     R = np.zeros(angle.shape + (3, 3))
     i, j = [(1, 2), (2, 0), (0, 1)][axis]

@@ -48,7 +48,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.spatial.transform import Rotation
 
-from dualarm.kinematics import ARMS, axis_rotation, wrap_angle
+from dualarm.kinematics import ARMS, axis_rotation, packed, wrap_angle
 from dualarm.mocap.joint_angles import Calibration, calibrate, segment_rotations_since_zero
 from dualarm.mocap.recording import Recording, sensor_name
 
@@ -135,7 +135,7 @@ def _fit_joint(A_parent, A_child, *, positive_flexion: bool) -> tuple[float, flo
     if positive_flexion:
         # Flexion a = atan2(-z, x) of the child axis in the corrected parent frame: keep a > 0 on average.
         axis = _child_axis(A_parent, A_child, delta) @ axis_rotation(0, phi).T
-        mean_flexion = float(np.mean(np.arctan2(-axis[:, 2], axis[:, 0])))
+        mean_flexion = float(np.mean(np.arctan2(-axis[:, 2], packed(axis[:, 0]))))
         flexed = abs(mean_flexion) > MIN_MEAN_FLEXION
         if mean_flexion < 0:
             phi += np.pi

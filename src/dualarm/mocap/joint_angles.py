@@ -46,7 +46,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from dualarm.errors import InputError
-from dualarm.kinematics import ARMS, HUMAN_BASE_ROTATION, wrap_angle
+from dualarm.kinematics import ARMS, HUMAN_BASE_ROTATION, packed, wrap_angle
 from dualarm.mocap.recording import SEGMENTS, Recording, sensor_name
 
 #: The paper's R^0: right-arm segment frames in G at the zero pose.
@@ -202,6 +202,12 @@ def segment_rotations_since_zero(rec: Recording, calib: Calibration) -> dict[str
     return out
 
 
+def entries_over_time(R: np.ndarray) -> np.ndarray:
+    """(T, 3, 3) rotations -> (3, 3, T) contiguous copy: ``[i, j]`` is entry (i, j) over time,
+    a contiguous row that numpy's arctan2 treats the same in every run (``packed``)."""
+    return packed(np.moveaxis(R, 0, -1))
+
+
 def shoulder_angles(A_upper: np.ndarray) -> np.ndarray:
     """Invert ``A_U = Rz(q1) Ry(q2) Rx(q3)`` over time, continuously.
 
@@ -210,11 +216,11 @@ def shoulder_angles(A_upper: np.ndarray) -> np.ndarray:
     Returns:
         (T, 3) q1, q2, q3 in rad, unwrapped along time.
     """
-    R = A_upper
-    cos_q2 = np.hypot(R[:, 0, 0], R[:, 1, 0])
-    q2 = np.arctan2(-R[:, 2, 0], cos_q2)
-    q1 = np.arctan2(R[:, 1, 0], R[:, 0, 0])
-    q3 = np.arctan2(R[:, 2, 1], R[:, 2, 2])
+    R = entries_over_time(A_upper)
+    cos_q2 = np.hypot(R[0, 0], R[1, 0])
+    q2 = np.arctan2(-R[2, 0], cos_q2)
+    q1 = np.arctan2(R[1, 0], R[0, 0])
+    q3 = np.arctan2(R[2, 1], R[2, 2])
     singular = cos_q2 < GIMBAL_EPS
     if singular.any():
         # Only q1 - q3 (q2 = +pi/2) or q1 + q3 (q2 = -pi/2) is defined: hold q1.
@@ -223,7 +229,7 @@ def shoulder_angles(A_upper: np.ndarray) -> np.ndarray:
         held = np.where(last_regular >= 0, q1[np.maximum(last_regular, 0)], 0.0)
         q1 = np.where(singular, held, q1)
         up = q2 > 0
-        combo = np.where(up, np.arctan2(R[:, 0, 1], R[:, 0, 2]), np.arctan2(-R[:, 0, 1], -R[:, 0, 2]))
+        combo = np.where(up, np.arctan2(R[0, 1], R[0, 2]), np.arctan2(-R[0, 1], -R[0, 2]))
         q3 = np.where(singular, np.where(up, combo + q1, combo - q1), q3)
     # Follow the second solution (q1+pi, pi-q2, q3+pi) where that is the smaller step.
     if len(q1) > 1:
@@ -247,8 +253,9 @@ def two_dof_angles(R_rel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         the angle of the rotation that Ry(a) Rx(b) leaves unexplained.
     """
     R = R_rel
-    a = np.arctan2(-R[:, 2, 0], R[:, 0, 0])
-    b = np.arctan2(-R[:, 1, 2], R[:, 1, 1])
+    E = entries_over_time(R)
+    a = np.arctan2(-E[2, 0], E[0, 0])
+    b = np.arctan2(-E[1, 2], E[1, 1])
     # Residual E = Rx(-b) Ry(-a) R written out entry by entry (no (T, 3, 3) temporaries):
     # P = Ry(-a) R has rows P0 = ca R0 - sa R2, P1 = R1, P2 = sa R0 + ca R2.
     ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)

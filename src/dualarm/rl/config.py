@@ -126,8 +126,7 @@ class DADDPGConfig(Settings):
     """Mixed precision: the hidden layers' matrix products in bfloat16, everything else
     (weights, Adam, output layers, losses) in float32. About 1.5 times faster updates on a CPU
     with native bfloat16 (AVX512-BF16 or AMX); slower elsewhere (a warning says so). Learning
-    measured the same within the seeds' spread (docs/benchmarks.md, which also records runs
-    that did not repeat bit for bit, in bfloat16 and in float32)."""
+    measured the same within the seeds' spread (docs/benchmarks.md)."""
 
     def __post_init__(self):
         check_field_types(self)
