@@ -259,7 +259,7 @@ def test_mapping_hands_numpy_trigonometry_contiguous_arrays_only(monkeypatch):
 
     from dualarm.demos.formats import DEFAULT_DEMO_DIR
     from dualarm.demos.loading import load_demo
-    from dualarm.kinematics import segment_rotations_in_base
+    from dualarm.kinematics import baxter_arm, segment_rotations_in_base
 
     calls = []
     for name in SIMD_UFUNCS:
@@ -273,4 +273,5 @@ def test_mapping_hands_numpy_trigonometry_contiguous_arrays_only(monkeypatch):
         monkeypatch.setattr(np, name, strict)
     demo = load_demo(DEFAULT_DEMO_DIR / "demo_00.csv.gz")
     segment_rotations_in_base(demo.q[:, :7])
+    baxter_arm("right").forward(demo.q[:, 7:])           # the replays' hand paths
     assert {"arctan2", "cos", "sin"} <= set(calls)
