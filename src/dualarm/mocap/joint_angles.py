@@ -253,9 +253,9 @@ def two_dof_angles(R_rel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         the angle of the rotation that Ry(a) Rx(b) leaves unexplained.
     """
     R = R_rel
-    E = entries_over_time(R)
-    a = np.arctan2(-E[2, 0], E[0, 0])
-    b = np.arctan2(-E[1, 2], E[1, 1])
+    entries = entries_over_time(R)
+    a = np.arctan2(-entries[2, 0], entries[0, 0])
+    b = np.arctan2(-entries[1, 2], entries[1, 1])
     # Residual E = Rx(-b) Ry(-a) R written out entry by entry (no (T, 3, 3) temporaries):
     # P = Ry(-a) R has rows P0 = ca R0 - sa R2, P1 = R1, P2 = sa R0 + ca R2.
     ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
