@@ -10,8 +10,8 @@ The run is the recipe with the recordings (``TrainConfig().with_(demos=...)``; `
 for another base), evaluations every 80 episodes on 50 placements, stopped at the first
 evaluation that reaches ``--stop-at``. ``--bf16`` multiplies the hidden layers in bfloat16
 (``algo.bf16_matmuls``; faster on a CPU with native bfloat16). Prints the machine, the episodes
-and the seconds. A run that never reaches it reports the budget and says so. Nothing else should run on the machine:
-the figure is one core's.
+and the seconds. A run that never reaches it reports the budget and says so. Nothing else
+should run on the machine: the figure is one core's.
 """
 
 from __future__ import annotations
