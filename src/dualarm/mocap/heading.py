@@ -135,6 +135,7 @@ def _fit_joint(A_parent, A_child, *, positive_flexion: bool) -> tuple[float, flo
     if positive_flexion:
         # Flexion a = atan2(-z, x) of the child axis in the corrected parent frame: keep a > 0 on average.
         axis = _child_axis(A_parent, A_child, delta) @ axis_rotation(0, phi).T
+        # (-axis[:, 2] is already a fresh contiguous array; the column needs packing)
         mean_flexion = float(np.mean(np.arctan2(-axis[:, 2], packed(axis[:, 0]))))
         flexed = abs(mean_flexion) > MIN_MEAN_FLEXION
         if mean_flexion < 0:
